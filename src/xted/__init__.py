@@ -1,0 +1,3 @@
+"""xted: cross-domain trajectory editing with diffusion models."""
+
+__version__ = "0.1.0"

@@ -1,0 +1,127 @@
+"""``xted data``: inspect, convert and list datasets."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+import typer
+
+from xted.data import formats, shipped
+from xted.errors import InputError
+
+app = typer.Typer(
+    help="Inspect, convert and list datasets (.npz, D4RL-style .hdf5/.h5, Minari).",
+    no_args_is_help=True,
+    add_completion=False,
+)
+
+SOURCE_HELP = "A .npz/.hdf5/.h5 file, a Minari dataset folder, minari:ID, or a shipped dataset name."
+DEST_HELP = "Output: .npz, .hdf5/.h5, a Minari dataset folder, or minari:ID."
+
+
+@app.command()
+def info(
+    path: Annotated[str, typer.Argument(help=SOURCE_HELP, show_default=False)],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Summarise a dataset: episodes, transitions, dimensions, returns, episode ends, metadata."""
+    report = dataset_info(path)
+    if as_json:
+        typer.echo(json.dumps(report, indent=2))
+    else:
+        typer.echo(_readable(report))
+
+
+@app.command()
+def convert(
+    src: Annotated[str, typer.Argument(help=SOURCE_HELP, show_default=False)],
+    dst: Annotated[str, typer.Argument(help=DEST_HELP, show_default=False)],
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
+) -> None:
+    """Convert a dataset between formats; the output appears whole or not at all."""
+    source, destination = formats.locate(src), formats.target(dst)
+    if source.path.resolve() == destination.path.resolve():
+        raise InputError(f"output {dst} is the input {src}; choose another output path")
+    formats.check_writable(destination, overwrite=force)
+    dataset = formats.load(source.path)
+    formats.save(dataset, dst, overwrite=force)
+    typer.echo(
+        f"wrote {len(dataset)} transitions ({dataset.num_episodes} episodes) "
+        f"to {destination.path} ({destination.format})"
+    )
+
+
+@app.command()
+def make(
+    env: Annotated[str, typer.Option("--env", help="halfcheetah or walker2d.")],
+    level: Annotated[str, typer.Option("--level", help="random, medium, medium-replay, expert, medium-expert, source.")],
+    out: Annotated[str, typer.Option("--out", help=DEST_HELP)],
+    gap: Annotated[str | None, typer.Option("--gap", help="Domain gap (source data), e.g. gravity or thigh=3.")] = None,
+    transitions: Annotated[int, typer.Option("--transitions", help="Number of transitions.")] = 20_000,
+    run: Annotated[str | None, typer.Option("--run", help="SAC run folder (xted sac train); default: shipped policies.")] = None,
+    seed: Annotated[int, typer.Option("--seed")] = 0,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
+) -> None:
+    """Make a D4RL-style dataset by running behaviour policies in a domain."""
+    from xted.data.build import BehaviourPolicies, build_dataset
+    from xted.envs import parse_domain
+
+    domain = parse_domain(env, gap)
+    formats.check_writable(formats.target(out), overwrite=force)
+    policies = None
+    if level != "random":
+        policies = BehaviourPolicies.from_run(run) if run else BehaviourPolicies.shipped(domain)
+    dataset = build_dataset(domain, level, transitions, policies, seed=seed)
+    formats.save(dataset, out, overwrite=force)
+    typer.echo(f"wrote {len(dataset)} transitions ({dataset.num_episodes} episodes) of {domain.name} {level} "
+               f"to {out}; normalized_score={dataset.metadata['normalized_score']:.1f}")
+
+
+@app.command("list")
+def list_shipped(
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object {name: entry}.")] = False,
+) -> None:
+    """List the datasets shipped with xted."""
+    entries = {name: shipped.manifest()["datasets"][name] for name in shipped.names()}
+    if as_json:
+        typer.echo(json.dumps(entries, indent=2))
+        return
+    if not entries:
+        typer.echo("no shipped datasets")
+    for name, entry in entries.items():
+        typer.echo(
+            f"{name}: transitions={entry.get('transitions', '?')} "
+            f"normalized_score={entry.get('normalized_score', '?')} file={entry.get('file', '?')}"
+        )
+
+
+def dataset_info(path: str) -> dict[str, Any]:
+    """The ``data info --json`` object for ``path``."""
+    location = formats.locate(path)
+    dataset = formats.load(location.path)
+    report = {"format": location.format, "path": str(location.path), **dataset.summary()}
+    if "normalized_score" in dataset.metadata:
+        report["normalized_score"] = dataset.metadata["normalized_score"]
+    return report
+
+
+def _readable(report: dict[str, Any]) -> str:
+    lines = [
+        f"path:              {report['path']} ({report['format']})",
+        f"episodes:          {report['episodes']}",
+        f"transitions:       {report['transitions']}",
+        f"observation_dim:   {report['observation_dim']}",
+        f"action_dim:        {report['action_dim']}",
+        f"return:            mean {report['return_mean']:.3f}, std {report['return_std']:.3f}, "
+        f"min {report['return_min']:.3f}, max {report['return_max']:.3f}",
+        f"episode length:    mean {report['episode_length_mean']:.1f}, "
+        f"min {report['episode_length_min']}, max {report['episode_length_max']}",
+        f"episode ends:      {report['terminals']} terminals, {report['timeouts']} timeouts",
+        f"next_observations: {'stored' if report['next_observations'] else 'not stored'}",
+        f"extras:            {', '.join(report['extras']) or 'none'}",
+    ]
+    if "normalized_score" in report:
+        lines.append(f"normalized_score:  {report['normalized_score']}")
+    lines.append(f"metadata:          {json.dumps(report['metadata'], sort_keys=True)}")
+    return "\n".join(lines)

@@ -1,0 +1,227 @@
+"""The in-memory dataset: episodes stored as flat per-step arrays.
+
+An episode ends at a step whose ``terminals`` (the environment terminated) or ``timeouts``
+(the episode was cut short: time limit, end of collection) flag is set; never both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from xted.errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """Transitions ``(s_t, a_t, r_t, s_{t+1})`` of consecutive episodes, validated on construction."""
+
+    observations: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    terminals: np.ndarray
+    timeouts: np.ndarray
+    next_observations: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        converted = {
+            "observations": _float_array("observations", self.observations, ndim=2),
+            "actions": _float_array("actions", self.actions, ndim=2),
+            "rewards": _float_array("rewards", self.rewards, ndim=1),
+            "terminals": as_flags("terminals", self.terminals),
+            "timeouts": as_flags("timeouts", self.timeouts),
+            "extras": {str(k): np.asarray(v) for k, v in self.extras.items()},
+            "metadata": _json_roundtrip(self.metadata),
+        }
+        if self.next_observations is not None:
+            converted["next_observations"] = _float_array("next_observations", self.next_observations, ndim=2)
+        for name, value in converted.items():
+            object.__setattr__(self, name, value)
+        self._validate()
+
+    def _validate(self) -> None:
+        n = len(self.observations)
+        if n == 0:
+            raise InputError("empty dataset: observations has no rows")
+        for name in ("actions", "rewards", "terminals", "timeouts"):
+            if len(getattr(self, name)) != n:
+                raise InputError(f"{name} has {len(getattr(self, name))} rows, observations has {n}")
+        if self.next_observations is not None and self.next_observations.shape != self.observations.shape:
+            raise InputError(
+                f"next_observations has shape {self.next_observations.shape}, "
+                f"observations has shape {self.observations.shape}"
+            )
+        for name, value in self.extras.items():
+            if value.ndim == 0 or len(value) != n:
+                raise InputError(f"extras[{name!r}] has shape {value.shape}; its first dimension must be {n}")
+        both = np.flatnonzero(self.terminals & self.timeouts)
+        if both.size:
+            raise InputError(f"terminals[{both[0]}] and timeouts[{both[0]}] are both true")
+        if not (self.terminals[-1] or self.timeouts[-1]):
+            raise InputError(f"the final step (index {n - 1}) ends no episode: terminals and timeouts false")
+
+    # ----------------------------------------------------------------- shape
+    def __len__(self) -> int:
+        return len(self.observations)
+
+    @property
+    def observation_dim(self) -> int:
+        return self.observations.shape[1]
+
+    @property
+    def action_dim(self) -> int:
+        return self.actions.shape[1]
+
+    # -------------------------------------------------------------- episodes
+    def episode_bounds(self) -> np.ndarray:
+        """``[E, 2]`` int array of ``(start, end)`` per episode, ``end`` exclusive."""
+        ends = np.flatnonzero(self.terminals | self.timeouts) + 1
+        starts = np.concatenate([[0], ends[:-1]])
+        return np.stack([starts, ends], axis=1)
+
+    @property
+    def num_episodes(self) -> int:
+        return int(np.count_nonzero(self.terminals | self.timeouts))
+
+    def episode_lengths(self) -> np.ndarray:
+        bounds = self.episode_bounds()
+        return bounds[:, 1] - bounds[:, 0]
+
+    def episode_returns(self) -> np.ndarray:
+        """Undiscounted return of each episode (float64)."""
+        starts = self.episode_bounds()[:, 0]
+        return np.add.reduceat(self.rewards.astype(np.float64), starts)
+
+    def select_episodes(self, indices: Sequence[int] | np.ndarray) -> Dataset:
+        """A dataset of the given episodes, in the given order (repeats allowed)."""
+        bounds = self.episode_bounds()
+        indices = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if indices.size == 0:
+            raise InputError("select_episodes: no episodes selected (empty dataset)")
+        bad = indices[(indices < 0) | (indices >= len(bounds))]
+        if bad.size:
+            raise InputError(f"select_episodes: episode {bad[0]} out of range 0..{len(bounds) - 1}")
+        steps = np.concatenate([np.arange(*bounds[i]) for i in indices])
+        return Dataset(
+            observations=self.observations[steps],
+            actions=self.actions[steps],
+            rewards=self.rewards[steps],
+            terminals=self.terminals[steps],
+            timeouts=self.timeouts[steps],
+            next_observations=None if self.next_observations is None else self.next_observations[steps],
+            extras={k: v[steps] for k, v in self.extras.items()},
+            metadata=self.metadata,
+        )
+
+    @staticmethod
+    def concatenate(datasets: Sequence[Dataset], metadata: Mapping[str, Any] | None = None) -> Dataset:
+        """Episodes of all datasets in order.
+
+        ``next_observations`` is kept if every dataset has it; extras are kept where every
+        dataset has the name. ``metadata`` defaults to ``{"sources": [each metadata]}``.
+        """
+        if not datasets:
+            raise InputError("concatenate: no datasets given (empty dataset)")
+        dims = {(d.observation_dim, d.action_dim) for d in datasets}
+        if len(dims) > 1:
+            raise InputError(f"concatenate: datasets differ in (observation_dim, action_dim): {sorted(dims)}")
+        def cat(name: str) -> np.ndarray:
+            return np.concatenate([getattr(d, name) for d in datasets])
+
+        has_next = all(d.next_observations is not None for d in datasets)
+        common = set.intersection(*(set(d.extras) for d in datasets))
+        return Dataset(
+            observations=cat("observations"),
+            actions=cat("actions"),
+            rewards=cat("rewards"),
+            terminals=cat("terminals"),
+            timeouts=cat("timeouts"),
+            next_observations=cat("next_observations") if has_next else None,
+            extras={k: np.concatenate([d.extras[k] for d in datasets]) for k in sorted(common)},
+            metadata=dict(metadata) if metadata is not None else {"sources": [d.metadata for d in datasets]},
+        )
+
+    def with_metadata(self, **updates: Any) -> Dataset:
+        """A copy with ``metadata`` updated by ``updates``."""
+        return dataclasses.replace(self, metadata={**self.metadata, **updates})
+
+    def next_observations_or_derived(self) -> np.ndarray:
+        """``next_observations`` if stored, else ``observations[t + 1]`` within each episode.
+
+        Raises InputError when a next observation is unknown: the last step of an episode
+        has no successor in a dataset without ``next_observations``.
+        """
+        if self.next_observations is not None:
+            return self.next_observations
+        end = int(np.flatnonzero(self.terminals | self.timeouts)[0])
+        raise InputError(
+            f"next_observations is missing and cannot be derived for the last step of an episode "
+            f"(index {end}); use a dataset that stores next_observations"
+        )
+
+    def summary(self) -> dict[str, Any]:
+        """Counts, dimensions, return and length statistics, extras and metadata."""
+        returns = self.episode_returns()
+        lengths = self.episode_lengths()
+        return {
+            "episodes": self.num_episodes,
+            "transitions": len(self),
+            "observation_dim": self.observation_dim,
+            "action_dim": self.action_dim,
+            "return_mean": float(returns.mean()),
+            "return_std": float(returns.std()),
+            "return_min": float(returns.min()),
+            "return_max": float(returns.max()),
+            "episode_length_mean": float(lengths.mean()),
+            "episode_length_min": int(lengths.min()),
+            "episode_length_max": int(lengths.max()),
+            "terminals": int(self.terminals.sum()),
+            "timeouts": int(self.timeouts.sum()),
+            "next_observations": self.next_observations is not None,
+            "extras": sorted(self.extras),
+            "metadata": self.metadata,
+        }
+
+
+def _float_array(name: str, value: Any, ndim: int) -> np.ndarray:
+    array = np.asarray(value)
+    if array.ndim != ndim:
+        raise InputError(f"{name} must be {ndim}-D, got shape {array.shape}")
+    if not (np.issubdtype(array.dtype, np.number) or array.dtype == np.bool_):
+        raise InputError(f"{name} must be numeric, got dtype {array.dtype}")
+    array = array.astype(np.float32, copy=False)
+    bad = np.argwhere(~np.isfinite(array))
+    if bad.size:
+        where = tuple(int(i) for i in bad[0])
+        label = ", ".join(map(str, where))
+        raise InputError(f"{name}[{label}] is {array[where]}")
+    return array
+
+
+def as_flags(name: str, value: Any) -> np.ndarray:
+    """``value`` as a 1-D bool array; numbers must be 0 or 1."""
+    array = np.asarray(value)
+    if array.ndim != 1:
+        raise InputError(f"{name} must be 1-D, got shape {array.shape}")
+    if array.dtype != np.bool_:
+        if not np.issubdtype(array.dtype, np.number):
+            raise InputError(f"{name} must be boolean, got dtype {array.dtype}")
+        bad = np.flatnonzero((array != 0) & (array != 1))
+        if bad.size:
+            raise InputError(f"{name}[{bad[0]}] is {array[bad[0]]}, expected 0 or 1")
+        array = array.astype(bool)
+    return array
+
+
+def _json_roundtrip(metadata: Mapping[str, Any]) -> dict[str, Any]:
+    try:
+        return json.loads(json.dumps(dict(metadata)))
+    except (TypeError, ValueError) as err:
+        raise InputError(f"metadata is not JSON-serialisable: {err}") from None

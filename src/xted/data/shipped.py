@@ -1,0 +1,40 @@
+"""Datasets shipped with xted, addressable by name (``halfcheetah-medium-replay``).
+
+The files live in ``xted/assets/datasets`` next to ``manifest.json``, which records each
+file's checksum, size, returns, normalised score and the command that regenerates it.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+MANIFEST_NAME = "manifest.json"
+
+
+def assets_dir() -> Path:
+    return Path(str(resources.files("xted") / "assets" / "datasets"))
+
+
+@lru_cache(maxsize=1)
+def manifest() -> dict[str, Any]:
+    """The manifest as a dict ``{"datasets": {name: entry}, "checkpoints": {...}}``."""
+    path = assets_dir() / MANIFEST_NAME
+    if not path.exists():
+        return {"datasets": {}, "checkpoints": {}}
+    return json.loads(path.read_text())
+
+
+def names() -> list[str]:
+    return sorted(manifest()["datasets"])
+
+
+def find(name: str) -> Path | None:
+    """The path of the shipped dataset called ``name``, or None if there is none."""
+    entry = manifest()["datasets"].get(name)
+    if entry is None:
+        return None
+    return assets_dir() / entry["file"]

@@ -1,0 +1,23 @@
+"""Environments with domain gaps and the simulator-replay dynamics error."""
+
+from xted.envs.domains import (
+    ENV_IDS,
+    PAPER_GAPS,
+    REFERENCE_RETURNS,
+    Domain,
+    normalized_score,
+    parse_domain,
+)
+from xted.envs.make import make, make_vector, simulator
+
+__all__ = [
+    "ENV_IDS",
+    "PAPER_GAPS",
+    "REFERENCE_RETURNS",
+    "Domain",
+    "make",
+    "make_vector",
+    "normalized_score",
+    "parse_domain",
+    "simulator",
+]

@@ -1,0 +1,94 @@
+"""Domains: a base environment plus a physics gap (gravity, friction, thigh length).
+
+A gap is written ``gravity``, ``friction``, ``thigh`` (the paper's source domains) or
+parametrically, ``gravity=1.5``, ``friction=0.5,thigh=3``. Every factor multiplies the
+target's value; the empty gap (``None``, ``""`` or ``"none"``) is the target domain itself.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from xted.errors import InputError
+
+ENV_IDS = {"halfcheetah": "HalfCheetah-v5", "walker2d": "Walker2d-v5"}
+
+# The paper's source domains (xTED §5.1): 2x gravity, 0.25x/0.5x friction, 2x thigh.
+PAPER_GAPS = {
+    "halfcheetah": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.25}, "thigh": {"thigh": 2.0}},
+    "walker2d": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}, "thigh": {"thigh": 2.0}},
+}
+
+# D4RL reference returns (random, expert) for normalised scores.
+REFERENCE_RETURNS = {"halfcheetah": (-280.178953, 12135.0), "walker2d": (1.629008, 4592.3)}
+
+FACTORS = ("gravity", "friction", "thigh")
+
+
+@dataclasses.dataclass(frozen=True)
+class Domain:
+    """One simulator setting: ``env`` with each physical factor scaled."""
+
+    env: str
+    gravity: float = 1.0
+    friction: float = 1.0
+    thigh: float = 1.0
+
+    @property
+    def env_id(self) -> str:
+        return ENV_IDS[self.env]
+
+    @property
+    def is_target(self) -> bool:
+        return self.gravity == 1.0 and self.friction == 1.0 and self.thigh == 1.0
+
+    @property
+    def gap(self) -> str:
+        """Canonical gap string: the paper's name where it is one, else ``k=v,...``."""
+        factors = {f: getattr(self, f) for f in FACTORS if getattr(self, f) != 1.0}
+        if not factors:
+            return "none"
+        for name, preset in PAPER_GAPS[self.env].items():
+            if factors == preset:
+                return name
+        return ",".join(f"{k}={v:g}" for k, v in factors.items())
+
+    @property
+    def name(self) -> str:
+        return self.env if self.is_target else f"{self.env}-{self.gap}"
+
+
+def parse_domain(env: str, gap: str | None = None) -> Domain:
+    """Parse ``env`` and a gap string into a :class:`Domain`; bad names raise InputError."""
+    if env not in ENV_IDS:
+        raise InputError(f"unknown env {env!r}; known: {', '.join(ENV_IDS)}")
+    if gap is None or gap.strip().lower() in ("", "none", "target"):
+        return Domain(env)
+    factors: dict[str, float] = {}
+    for part in gap.split(","):
+        part = part.strip()
+        if "=" in part:
+            key, _, value = part.partition("=")
+            key = key.strip()
+            if key not in FACTORS:
+                raise InputError(f"unknown gap factor {key!r} in {gap!r}; known: {', '.join(FACTORS)}")
+            try:
+                factor = float(value)
+            except ValueError:
+                raise InputError(f"gap factor {key}={value!r} is not a number") from None
+            if not math.isfinite(factor) or factor <= 0:
+                raise InputError(f"gap factor {key}={value} must be a positive number")
+            factors[key] = factor
+        elif part in PAPER_GAPS[env]:
+            factors.update(PAPER_GAPS[env][part])
+        else:
+            known = ", ".join(PAPER_GAPS[env])
+            raise InputError(f"unknown gap {part!r}; use one of {known} or factor=value with {', '.join(FACTORS)}")
+    return Domain(env, **factors)
+
+
+def normalized_score(env: str, episode_return):
+    """D4RL-normalised score: 100 * (return - random) / (expert - random)."""
+    low, high = REFERENCE_RETURNS[env]
+    return 100.0 * (episode_return - low) / (high - low)

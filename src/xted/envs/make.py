@@ -1,0 +1,83 @@
+"""Build Gymnasium environments and bare MuJoCo models for a :class:`Domain`.
+
+Gravity and friction are edits of the loaded ``MjModel``; thigh length is a generated XML
+in a temporary folder, loaded once and removed. Nothing is written into installed packages.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from xted.envs.domains import Domain, parse_domain
+from xted.envs.morphology import scaled_thigh_xml
+
+WALKER_HEALTHY_Z = (0.8, 2.0)
+
+
+def _forward_mujoco_warning(message: str) -> None:
+    # Gymnasium's half_cheetah.xml uses `settotalmass`, which MuJoCo >= 3.3 reports as deprecated
+    # (to stderr and a MUJOCO_LOG.TXT in the working folder) every time the model is compiled.
+    if "settotalmass" not in message:
+        warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
+
+
+mujoco.set_mju_user_warning(_forward_mujoco_warning)
+
+
+def _asset_xml(env_id: str) -> Path:
+    probe = gym.make(env_id)
+    try:
+        return Path(probe.unwrapped.fullpath)
+    finally:
+        probe.close()
+
+
+def apply_physics(model: mujoco.MjModel, domain: Domain) -> None:
+    """Scale gravity and every geom's friction (the floor's included) in place."""
+    model.opt.gravity[:] = model.opt.gravity * domain.gravity
+    model.geom_friction[:] = model.geom_friction * domain.friction
+
+
+def make(env: str | Domain, gap: str | None = None, **kwargs) -> gym.Env:
+    """A Gymnasium env of ``env`` (``halfcheetah``/``walker2d``) in the domain ``gap``."""
+    domain = env if isinstance(env, Domain) else parse_domain(env, gap)
+    if domain.thigh == 1.0:
+        instance = gym.make(domain.env_id, **kwargs)
+    else:
+        xml, lift = scaled_thigh_xml(domain.env, _asset_xml(domain.env_id), domain.thigh)
+        if domain.env == "walker2d":
+            kwargs.setdefault("healthy_z_range", (WALKER_HEALTHY_Z[0] + lift, WALKER_HEALTHY_Z[1] + lift))
+        with tempfile.TemporaryDirectory(prefix="xted-morph-") as folder:
+            path = Path(folder) / f"{domain.env}_thigh.xml"
+            path.write_text(xml)
+            instance = gym.make(domain.env_id, xml_file=str(path), **kwargs)
+    apply_physics(instance.unwrapped.model, domain)
+    return instance
+
+
+def make_vector(domain: Domain, num_envs: int, seed: int | None = None) -> gym.vector.VectorEnv:
+    """``num_envs`` copies stepped in this process (cheap MuJoCo steps need no subprocesses)."""
+    vec = gym.vector.SyncVectorEnv([lambda: make(domain) for _ in range(num_envs)])
+    if seed is not None:
+        vec.reset(seed=seed)
+    return vec
+
+
+def simulator(domain: Domain) -> tuple[mujoco.MjModel, int]:
+    """The domain's compiled ``MjModel`` and its frame skip (simulator steps per env step)."""
+    instance = make(domain)
+    try:
+        return instance.unwrapped.model, instance.unwrapped.frame_skip
+    finally:
+        instance.close()
+
+
+def observation_velocity_clip(domain: Domain) -> float:
+    """Walker2d-v5 clips velocities in its observations to +-10; HalfCheetah does not clip."""
+    return 10.0 if domain.env == "walker2d" else np.inf

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from xted.data.build import BehaviourPolicies, build_dataset, select_checkpoints
+from xted.envs import parse_domain
+from xted.envs.dynamics import dynamics_error
+from xted.errors import InputError
+from xted.rl.sac import SACConfig
+from xted.rl.sac_train import SACRunConfig, train_sac
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    run = tmp_path_factory.mktemp("sac") / "halfcheetah"
+    config = SACRunConfig(total_steps=3000, start_steps=500, checkpoint_every=1000, eval_episodes=1,
+                          sac=SACConfig(hidden=(32, 32), batch_size=64))
+    train_sac(parse_domain("halfcheetah"), run, config, progress=False)
+    return run
+
+
+def test_select_checkpoints_picks_best_and_a_third():
+    evals = [{"step": s, "return_mean": r} for s, r in [(1, 100.0), (2, 1000.0), (3, 3000.0), (4, 2500.0)]]
+    assert select_checkpoints(evals) == (3, 2)
+
+
+@pytest.mark.parametrize("level", ["medium", "medium-replay", "expert", "medium-expert"])
+def test_levels_from_a_run(tiny_run, level):
+    domain = parse_domain("halfcheetah")
+    size = 900 if level == "medium-replay" else 1500
+    data = build_dataset(domain, level, size, BehaviourPolicies.from_run(tiny_run), seed=1, progress=False)
+    assert len(data) == size
+    assert data.metadata["level"] == level and data.metadata["env"] == "halfcheetah"
+    assert np.isfinite(data.metadata["normalized_score"])
+    assert data.timeouts[-1] or data.terminals[-1]
+    # Real target-domain transitions: the simulator replays them exactly.
+    assert dynamics_error(domain, data.observations, data.actions, data.next_observations).mae < 1e-6
+
+
+def test_source_data_is_cut_into_whole_episodes_with_timeouts():
+    domain = parse_domain("walker2d", "gravity")
+    data = build_dataset(domain, "random", 700, None, seed=0, progress=False)
+    assert len(data) == 700
+    assert data.metadata["gap"] == "gravity"
+    ends = data.terminals | data.timeouts
+    assert ends[-1] and ends.sum() >= 2
+    assert dynamics_error(domain, data.observations, data.actions, data.next_observations).mae < 1e-6
+
+
+def test_same_seed_same_data(tiny_run):
+    domain = parse_domain("halfcheetah")
+    policies = BehaviourPolicies.from_run(tiny_run)
+    a = build_dataset(domain, "medium", 1000, policies, seed=3, progress=False)
+    b = build_dataset(domain, "medium", 1000, policies, seed=3, progress=False)
+    np.testing.assert_array_equal(a.observations, b.observations)
+    np.testing.assert_array_equal(a.actions, b.actions)
+
+
+def test_replay_buffer_too_small_is_refused(tiny_run):
+    with pytest.raises(InputError, match="fewer than"):
+        build_dataset(parse_domain("halfcheetah"), "medium-replay", 10**6, BehaviourPolicies.from_run(tiny_run))
+
+
+def test_bad_level_and_missing_policies():
+    with pytest.raises(InputError, match="level"):
+        build_dataset(parse_domain("halfcheetah"), "expertish", 10, None)
+    with pytest.raises(InputError, match="policies"):
+        build_dataset(parse_domain("halfcheetah"), "medium", 10, None)

@@ -1,0 +1,40 @@
+import json
+
+import pytest
+
+from xted.cli.main import main
+from xted.data import save
+from xted.data.build import build_dataset
+from xted.envs import parse_domain
+
+
+@pytest.fixture(scope="module")
+def target_and_source(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dyn")
+    paths = []
+    for gap in (None, "gravity"):
+        data = build_dataset(parse_domain("halfcheetah", gap), "random", 300, None, seed=0, progress=False)
+        paths.append(str(folder / f"{gap}.npz"))
+        save(data, paths[-1])
+    return paths
+
+
+def test_dynamics_json_scores_target_zero_and_source_above(target_and_source, capsys):
+    assert main(["analyze", "dynamics", "--env", "halfcheetah", "--json", *target_and_source]) == 0
+    report = json.loads(capsys.readouterr().out)
+    target, source = report["datasets"]
+    assert {"path", "n", "mae", "mse"} <= set(target)
+    assert target["n"] == 300 and target["mae"] < 1e-6
+    assert source["mae"] > 0.05
+
+
+def test_dynamics_in_the_source_domain_flips(target_and_source, capsys):
+    assert main(["analyze", "dynamics", "--env", "halfcheetah", "--gap", "gravity", "--json", *target_and_source]) == 0
+    target, source = json.loads(capsys.readouterr().out)["datasets"]
+    assert source["mae"] < 1e-6 < target["mae"]
+
+
+@pytest.mark.parametrize("args", [["--env", "ant"], ["--env", "halfcheetah", "--gap", "wind"]])
+def test_bad_domain_exits_2(target_and_source, args, capsys):
+    assert main(["analyze", "dynamics", *args, target_and_source[0]]) == 2
+    assert "error" in capsys.readouterr().err
