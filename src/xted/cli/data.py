@@ -75,7 +75,7 @@ def make(
     dataset = build_dataset(domain, level, transitions, policies, seed=seed)
     formats.save(dataset, out, overwrite=force)
     typer.echo(f"wrote {len(dataset)} transitions ({dataset.num_episodes} episodes) of {domain.name} {level} "
-               f"to {out}; normalized_score={dataset.metadata['normalized_score']:.1f}")
+               f"to {out}; normalized_score={dataset.metadata['normalized_score']}")
 
 
 @app.command("list")

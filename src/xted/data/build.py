@@ -79,8 +79,10 @@ def _policy_fn(path: Path):
     return actor, (lambda obs, rng: actor.act(obs, rng))
 
 
-def _subset_episodes(arrays: dict[str, np.ndarray], transitions: int, seed: int) -> dict[str, np.ndarray]:
-    """Whole episodes in random order until ``transitions``; the last one cut with a timeout."""
+def _subset_episodes(arrays: dict[str, np.ndarray], transitions: int, seed: int):
+    """Whole episodes in random order until ``transitions``; the last one cut with a timeout.
+
+    Returns the arrays and the returns of the episodes kept whole."""
     if len(arrays["rewards"]) < transitions:
         raise InputError(f"the medium replay buffer holds {len(arrays['rewards'])} transitions, "
                          f"fewer than the {transitions} asked for")
@@ -93,11 +95,13 @@ def _subset_episodes(arrays: dict[str, np.ndarray], transitions: int, seed: int)
         total += ends[i] - starts[i]
         if total >= transitions:
             break
+    whole = chosen if total == transitions else chosen[:-1]
+    returns = np.array([arrays["rewards"][idx].sum() for idx in whole])
     idx = np.concatenate(chosen)[:transitions]
     out = {k: v[idx] for k, v in arrays.items()}
     if not (out["terminals"][-1] or out["timeouts"][-1]):
         out["timeouts"][-1] = True
-    return out
+    return out, returns
 
 
 def _replay_prefix(replay: Path, medium: Path) -> dict[str, np.ndarray]:
@@ -108,11 +112,6 @@ def _replay_prefix(replay: Path, medium: Path) -> dict[str, np.ndarray]:
     if not (arrays["terminals"][-1] or arrays["timeouts"][-1]):
         arrays["timeouts"][-1] = True
     return arrays
-
-
-def _episode_returns(arrays: dict[str, np.ndarray]) -> np.ndarray:
-    ends = np.flatnonzero(arrays["terminals"] | arrays["timeouts"]) + 1
-    return np.add.reduceat(arrays["rewards"], np.concatenate([[0], ends[:-1]]))
 
 
 def build_dataset(domain: Domain, level: str, transitions: int, policies: BehaviourPolicies | None,
@@ -135,8 +134,7 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
     elif level == "medium-replay":
         if policies.replay is None or policies.medium is None or not policies.replay.exists():
             raise InputError(f"no medium replay buffer for {domain.name}")
-        arrays = _subset_episodes(_replay_prefix(policies.replay, policies.medium), transitions, seed)
-        returns = _episode_returns(arrays)
+        arrays, returns = _subset_episodes(_replay_prefix(policies.replay, policies.medium), transitions, seed)
         policy_info = {"policy": str(policies.medium), "replay_buffer": str(policies.replay)}
     else:
         parts = {"medium": [(policies.medium, transitions)], "expert": [(policies.expert, transitions)],
@@ -155,7 +153,8 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
         arrays = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
         returns = np.concatenate(all_returns)
         policy_info = {"policy": used}
-    scores = normalized_score(domain.env, returns)
+    # No score when no episode was kept whole (a small cut of long episodes).
+    score = float(np.mean(normalized_score(domain.env, returns))) if len(returns) else None
     metadata = {
         "env": domain.env,
         "gap": domain.gap,
@@ -163,8 +162,8 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
         "level": level,
         "seed": seed,
         **policy_info,
-        "episode_return_mean": float(np.mean(returns)),
-        "normalized_score": float(np.mean(scores)),
+        "episode_return_mean": float(np.mean(returns)) if len(returns) else None,
+        "normalized_score": score,
         "command": " ".join(shlex.quote(a) for a in ["xted", *sys.argv[1:]]) if sys.argv[0].endswith("xted") else None,
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "xted_version": xted.__version__,

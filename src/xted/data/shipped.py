@@ -21,10 +21,10 @@ def assets_dir() -> Path:
 
 @lru_cache(maxsize=1)
 def manifest() -> dict[str, Any]:
-    """The manifest as a dict ``{"datasets": {name: entry}, "checkpoints": {...}}``."""
+    """The manifest as a dict ``{"datasets": {name: entry}, "policies": {...}}``."""
     path = assets_dir() / MANIFEST_NAME
     if not path.exists():
-        return {"datasets": {}, "checkpoints": {}}
+        return {"datasets": {}, "policies": {}}
     return json.loads(path.read_text())
 
 

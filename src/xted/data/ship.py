@@ -1,0 +1,111 @@
+"""Build the datasets and behaviour policies shipped with xted (maintainers' tool).
+
+    python -m xted.data.ship --runs runs/sac [--transitions 20000] [--seed 0]
+
+From the SAC run folders ``RUNS/{domain}`` (``xted sac train``) it copies the behaviour policies
+into ``xted/assets/policies`` (target: expert and medium; sources: expert), the replay buffer up
+to the medium checkpoint, then makes every shipped dataset with exactly the command a user would
+run (``xted data make ... --out``) and records each file in ``assets/datasets/manifest.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from xted.atomic import atomic_path
+from xted.data.build import BehaviourPolicies, build_dataset, policies_dir
+from xted.data.formats import save
+from xted.data.shipped import MANIFEST_NAME, assets_dir
+from xted.envs import PAPER_GAPS, parse_domain
+from xted.rl.policy_io import GaussianActor
+from xted.rl.sac_train import read_evals
+
+TARGET_LEVELS = ("medium", "medium-replay", "medium-expert")
+
+
+def sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def file_entry(path: Path, root: Path) -> dict:
+    return {"file": str(path.relative_to(root)), "sha256": sha256(path), "bytes": path.stat().st_size}
+
+
+def _ship_policies(env: str, runs: Path, folder: Path) -> dict:
+    entries = {}
+    for gap in (None, *PAPER_GAPS[env]):
+        domain = parse_domain(env, gap)
+        run = runs / domain.name
+        chosen = BehaviourPolicies.from_run(run)
+        evals = {int(row["step"]): row for row in read_evals(run)}
+        roles = {"expert": chosen.expert}
+        if domain.is_target:
+            roles["medium"] = chosen.medium
+        for role, source in roles.items():
+            step = GaussianActor.load(source).meta["step"]
+            dest = folder / f"{domain.name}-{role}.msgpack"
+            shutil.copyfile(source, dest)
+            entries[dest.stem] = {**file_entry(dest, folder), "domain": domain.name, "role": role, "step": step,
+                                  "eval_return": evals[step]["return_mean"],
+                                  "eval_normalized_score": evals[step]["normalized_score"],
+                                  "trained_steps": int(max(evals)), "command": f"xted sac train --env {env}"
+                                  + (f" --gap {gap}" if gap else "") + f" --steps {int(max(evals))} --out RUN"}
+        if domain.is_target:
+            step = GaussianActor.load(chosen.medium).meta["step"]
+            dest = folder / f"{domain.name}-medium-replay-buffer.npz"
+            with np.load(chosen.replay) as buffer, atomic_path(dest, suffix=".npz") as tmp:
+                np.savez_compressed(tmp, **{k: buffer[k][:step] for k in buffer.files})
+            entries[dest.stem] = {**file_entry(dest, folder), "domain": domain.name, "role": "replay buffer",
+                                  "transitions": step}
+    return entries
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=Path, required=True)
+    parser.add_argument("--envs", nargs="+", default=["halfcheetah", "walker2d"])
+    parser.add_argument("--transitions", type=int, default=20_000)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+
+    data_root, policy_root = assets_dir(), policies_dir()
+    data_root.mkdir(parents=True, exist_ok=True)
+    policy_root.mkdir(parents=True, exist_ok=True)
+    manifest_path = data_root / MANIFEST_NAME
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"datasets": {}, "policies": {}}
+    for env in args.envs:
+        manifest["policies"].update(_ship_policies(env, args.runs, policy_root))
+        jobs = [(None, level) for level in TARGET_LEVELS] + [(gap, "source") for gap in PAPER_GAPS[env]]
+        for gap, level in jobs:
+            domain = parse_domain(env, gap)
+            name = f"{env}-{level}" if gap is None else domain.name
+            dest = data_root / f"{name}.npz"
+            command = (f"xted data make --env {env}" + (f" --gap {gap}" if gap else "")
+                       + f" --level {level} --transitions {args.transitions} --seed {args.seed} --out {name}.npz")
+            dataset = build_dataset(domain, level, args.transitions, BehaviourPolicies.shipped(domain), seed=args.seed)
+            dataset = dataset.with_metadata(command=command, name=name)
+            save(dataset, dest)
+            returns = dataset.episode_returns()
+            manifest["datasets"][name] = {
+                **file_entry(dest, data_root), "env": env, "gap": domain.gap, "level": level,
+                "transitions": len(dataset), "episodes": dataset.num_episodes,
+                "return_mean": float(returns.mean()), "normalized_score": dataset.metadata["normalized_score"],
+                "command": command,
+            }
+            with atomic_path(manifest_path) as tmp:
+                tmp.write_text(json.dumps(manifest, indent=2, sort_keys=True))
+            print(f"{name}: {len(dataset)} transitions, normalized score {dataset.metadata['normalized_score']:.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,356 @@
+"""Editing source trajectories with a trained prior (paper §4.2).
+
+A window is noised to step ``k = round(kappa * K)`` and denoised by the reverse chain from exactly
+that step (``k`` DDPM model calls, or ``sampler_steps`` DDIM calls), with the first transition
+(and optionally the last) re-imposed clean after every step. The whole chain is one jitted
+``fori_loop``. Each window's noise comes from ``fold_in(key, window number)``, so the random draws
+do not depend on how windows are grouped into batches.
+
+Dataset tiling: an episode of ``L`` steps becomes the state sequence ``s_0 .. s_L`` (``s_L`` the
+final next observation; the last action and reward repeated at position ``L``), cut into windows
+of ``H`` with stride ``H - 1`` (neighbours share one state) and a last window aligned to the end.
+Transition ``t`` is read from the first window holding ``t`` and ``t + 1``, so ``(s_t, a_t, r_t,
+s_{t+1})`` always comes from one edited window. Edited values are mapped back as
+``raw + denormalize(edited) - denormalize(normalized raw)``, which leaves every value the editor
+did not change (held steps, ``kappa = 0``) bit-identical to the source.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from xted.data import Dataset
+from xted.diffusion.denoiser import Denoiser, DenoiserConfig
+from xted.diffusion.schedule import Schedule, ddim_step, ddim_timesteps, ddpm_step, q_sample
+from xted.diffusion.training import Prior
+from xted.errors import InputError
+
+
+@dataclass(frozen=True)
+class EditConfig:
+    """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
+    ``target_return``, used only with a return-conditioned prior. ``sampler_steps``: DDIM only
+    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None."""
+
+    kappa: float = 0.5
+    iterations: int = 1
+    hold_last: bool = False
+    guidance: float = 1.0
+    target_return: float = 0.9
+    sampler: str = "ddpm"
+    sampler_steps: int | None = None
+    clip_denoised: float | None = None
+    batch_size: int = 1024
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        checks = [
+            (0.0 <= self.kappa <= 1.0, f"kappa must be in [0, 1], got {self.kappa}"),
+            (self.iterations >= 1, f"iterations must be >= 1, got {self.iterations}"),
+            (self.sampler in ("ddpm", "ddim"), f"sampler must be 'ddpm' or 'ddim', got {self.sampler!r}"),
+            (self.sampler_steps is None or self.sampler == "ddim", "sampler_steps is for the ddim sampler only"),
+            (self.sampler_steps is None or self.sampler_steps >= 1,
+             f"sampler_steps must be >= 1, got {self.sampler_steps}"),
+            (self.clip_denoised is None or self.clip_denoised > 0,
+             f"clip_denoised must be > 0, got {self.clip_denoised}"),
+            (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise InputError(f"EditConfig: {message}")
+
+    def noise_steps(self, num_timesteps: int) -> int:
+        """``k = round(kappa * K)``."""
+        return int(round(self.kappa * num_timesteps))
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Everything static about one edit (hashable: the jit cache key)."""
+
+    denoiser: DenoiserConfig
+    timesteps: tuple[int, ...]
+    sampler: str
+    iterations: int
+    hold_last: bool
+    guidance: float | None
+    clip: float | None
+
+
+def _plan(prior: Prior, config: EditConfig) -> _Plan:
+    k = config.noise_steps(prior.config.num_timesteps)
+    if config.sampler == "ddim":
+        steps = config.sampler_steps or k
+        if steps > k:
+            raise InputError(f"EditConfig: sampler_steps={steps} exceeds the {k} noise steps of kappa={config.kappa}")
+        timesteps = tuple(int(t) for t in ddim_timesteps(k, steps))
+    else:
+        timesteps = tuple(range(k - 1, -1, -1))
+    return _Plan(
+        denoiser=prior.config.denoiser,
+        timesteps=timesteps,
+        sampler=config.sampler,
+        iterations=config.iterations,
+        hold_last=config.hold_last,
+        guidance=float(config.guidance) if prior.config.return_condition else None,
+        clip=config.clip_denoised,
+    )
+
+
+def _predict_noise(params: Any, plan: _Plan, x: dict[str, jnp.ndarray], t: jnp.ndarray, returns: jnp.ndarray) -> dict:
+    model = Denoiser(plan.denoiser)
+    streams = plan.denoiser.streams
+
+    def apply(inputs: dict[str, jnp.ndarray], tt: jnp.ndarray, r: jnp.ndarray | None, drop: jnp.ndarray | None):
+        eps = model.apply(params, inputs["state"], inputs["action"], inputs.get("reward"), tt, r, drop)
+        return dict(zip(streams, eps))
+
+    if plan.guidance is None:
+        return apply(x, t, None, None)
+    if plan.guidance == 1.0:
+        return apply(x, t, returns, None)
+    b = t.shape[0]
+    both = apply(
+        {s: jnp.concatenate([v, v]) for s, v in x.items()},
+        jnp.concatenate([t, t]),
+        jnp.concatenate([returns, returns]),
+        jnp.concatenate([jnp.zeros(b, bool), jnp.ones(b, bool)]),
+    )
+    return {s: e[b:] + plan.guidance * (e[:b] - e[b:]) for s, e in both.items()}
+
+
+def _noise(keys: jnp.ndarray, path: tuple[Any, ...], like: jnp.ndarray) -> jnp.ndarray:
+    """Standard normals shaped like ``like`` ``[B, ...]``; window ``b`` folds ``path`` into ``keys[b]``."""
+
+    def one(key: jax.Array) -> jnp.ndarray:
+        for p in path:
+            key = jax.random.fold_in(key, p)
+        return jax.random.normal(key, like.shape[1:], like.dtype)
+
+    return jax.vmap(one)(keys)
+
+
+@functools.partial(jax.jit, static_argnames=("plan",))
+def _edit(
+    params: Any, schedule: Schedule, x0: dict[str, jnp.ndarray], keys: jnp.ndarray, returns: jnp.ndarray, plan: _Plan
+) -> dict[str, jnp.ndarray]:
+    """Noise ``x0`` to ``timesteps[0]`` and run the reverse chain over ``timesteps``, ``iterations`` times."""
+    streams = plan.denoiser.streams
+    b = keys.shape[0]
+    ts = jnp.asarray(plan.timesteps, jnp.int32)
+    ts_prev = jnp.concatenate([ts[1:], jnp.array([-1], jnp.int32)])
+
+    def hold(x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
+        out = {s: x[s].at[:, 0].set(x0[s][:, 0]) for s in streams}
+        if plan.hold_last:
+            out = {s: out[s].at[:, -1].set(x0[s][:, -1]) for s in streams}
+        return out
+
+    def iteration(it: jnp.ndarray, x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
+        t_start = jnp.full((b,), ts[0])
+        x = hold({s: q_sample(schedule, x[s], t_start, _noise(keys, (it, 0, j), x[s])) for j, s in enumerate(streams)})
+
+        def step(i: jnp.ndarray, x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
+            t = jnp.full((b,), ts[i])
+            eps = _predict_noise(params, plan, x, t, returns)
+            if plan.sampler == "ddim":
+                t_prev = jnp.full((b,), ts_prev[i])
+                return hold({s: ddim_step(schedule, x[s], t, t_prev, eps[s], plan.clip) for s in streams})
+            return hold({
+                s: ddpm_step(schedule, x[s], t, eps[s], _noise(keys, (it, i + 1, j), x[s]), plan.clip)
+                for j, s in enumerate(streams)
+            })
+
+        return jax.lax.fori_loop(0, len(plan.timesteps), step, x)
+
+    return jax.lax.fori_loop(0, plan.iterations, iteration, x0)
+
+
+def _editor(prior: Prior, config: EditConfig) -> Callable[[dict[str, np.ndarray], jnp.ndarray], dict[str, jnp.ndarray]]:
+    """``(normalised windows per stream, per-window keys) -> edited windows`` for this prior and config."""
+    plan = _plan(prior, config)
+    schedule = prior.schedule
+
+    def run(x: dict[str, np.ndarray], keys: jnp.ndarray) -> dict[str, jnp.ndarray]:
+        returns = jnp.full((keys.shape[0],), config.target_return, jnp.float32)
+        x = {s: jnp.asarray(v, jnp.float32) for s, v in x.items()}
+        return _edit(prior.params, schedule, x, keys, returns, plan)
+
+    return run
+
+
+def _check_windows(prior: Prior, arrays: dict[str, np.ndarray]) -> None:
+    cfg = prior.config
+    for stream, array in arrays.items():
+        expected = (cfg.horizon, cfg.denoiser.element_dim(stream))
+        if np.ndim(array) != 3 or tuple(np.shape(array)[1:]) != expected:
+            shape = f"[B, {expected[0]}, {expected[1]}]"
+            raise InputError(f"{stream} windows must have shape {shape}, got {np.shape(array)}")
+
+
+def edit_windows(
+    prior: Prior,
+    states: np.ndarray,
+    actions: np.ndarray,
+    rewards: np.ndarray | None,
+    config: EditConfig,
+    rng: jax.Array,
+) -> tuple[Any, Any, Any]:
+    """Edit normalised windows ``[B, H, ds]``, ``[B, H, da]``, ``[B, H, 1]``; returns JAX arrays.
+
+    For a reward-free prior ``rewards`` may be None and is returned as given. ``kappa = 0``
+    returns the inputs themselves.
+    """
+    x = {"state": states, "action": actions}
+    if prior.config.use_reward:
+        if rewards is None:
+            raise InputError("edit_windows: this prior models rewards; rewards must be given")
+        x["reward"] = rewards
+    _check_windows(prior, x)
+    if config.noise_steps(prior.config.num_timesteps) == 0:
+        return states, actions, rewards
+    out = _editor(prior, config)(x, jax.random.split(rng, np.shape(states)[0]))
+    return out["state"], out["action"], out["reward"] if prior.config.use_reward else rewards
+
+
+# ------------------------------------------------------------------------------- datasets
+@dataclass(frozen=True, eq=False)
+class _Tiling:
+    """Windows over the per-episode state sequences and where each transition is read from."""
+
+    window_rows: np.ndarray  # [W, H] rows of the sequence arrays
+    transition_steps: np.ndarray  # [T] dataset rows of the edited transitions
+    transition_window: np.ndarray  # [T] window of each edited transition
+    transition_position: np.ndarray  # [T] position of s_t in that window
+    sequence_steps: np.ndarray  # [S] dataset row each sequence position is taken from
+    sequence_is_next: np.ndarray  # [S] True where the position is the episode's final next observation
+    passed_through: np.ndarray  # [E] True for episodes too short to edit
+
+
+def _tile(bounds: np.ndarray, horizon: int) -> _Tiling:
+    stride = horizon - 1
+    rows, t_steps, t_window, t_position, seq_steps, seq_next, passed = [], [], [], [], [], [], []
+    offset = n_windows = 0
+    for start, end in bounds:
+        length = int(end - start)
+        if length + 1 < horizon:
+            passed.append(True)
+            continue
+        passed.append(False)
+        starts = list(range(0, length + 2 - horizon, stride))
+        if starts[-1] + horizon < length + 1:
+            starts.append(length + 1 - horizon)
+        starts = np.asarray(starts)
+        rows.append(offset + starts[:, None] + np.arange(horizon))
+        t = np.arange(length)
+        window = np.minimum(t // stride, len(starts) - 1)
+        t_steps.append(start + t)
+        t_window.append(n_windows + window)
+        t_position.append(t - starts[window])
+        seq_steps.append(np.append(np.arange(start, end), end - 1))
+        seq_next.append(np.arange(length + 1) == length)
+        offset += length + 1
+        n_windows += len(starts)
+    cat = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)  # noqa: E731
+    return _Tiling(
+        window_rows=np.concatenate(rows) if rows else np.zeros((0, horizon), np.int64),
+        transition_steps=cat(t_steps, np.int64),
+        transition_window=cat(t_window, np.int64),
+        transition_position=cat(t_position, np.int64),
+        sequence_steps=cat(seq_steps, np.int64),
+        sequence_is_next=cat(seq_next, bool),
+        passed_through=np.asarray(passed, bool),
+    )
+
+
+def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dataset, dict[str, Any]]:
+    """Edit every episode of ``source`` with ``prior``; returns the edited dataset and a report.
+
+    Terminals and timeouts are carried from the source, and rewards too for a reward-free prior.
+    Episodes shorter than ``H - 1`` steps are passed through unedited. Extras (e.g. simulator
+    states) describe the unedited source and are dropped, unless ``kappa = 0`` (source returned as is).
+    The source must store next observations (the final state of each episode is edited too).
+    Report: ``windows`` edited, ``transitions`` taken from edited windows,
+    ``passed_through_episodes``, ``dropped_extras`` and wall ``seconds`` (compilation included).
+    """
+    began = time.perf_counter()
+    cfg = prior.config
+    if (source.observation_dim, source.action_dim) != (cfg.state_dim, cfg.action_dim):
+        raise InputError(
+            f"source data has (state_dim, action_dim) = ({source.observation_dim}, {source.action_dim}), "
+            f"the prior was trained on ({cfg.state_dim}, {cfg.action_dim})"
+        )
+    k = config.noise_steps(cfg.num_timesteps)
+    metadata = {
+        **source.metadata,
+        "edit": {"config": dataclasses.asdict(config), "prior": prior.path, "prior_step": prior.step, "noise_steps": k},
+    }
+    bounds = source.episode_bounds()
+    if k == 0:
+        report = {"windows": 0, "transitions": 0, "passed_through_episodes": len(bounds), "dropped_extras": [],
+                  "seconds": time.perf_counter() - began}
+        return source.with_metadata(**metadata), report
+
+    tiling = _tile(bounds, cfg.horizon)
+    next_observations = source.next_observations_or_derived()
+    steps, is_next = tiling.sequence_steps, tiling.sequence_is_next
+    raw = {
+        "state": np.where(is_next[:, None], next_observations[steps], source.observations[steps]),
+        "action": source.actions[steps],
+        "reward": source.rewards[steps][:, None],
+    }
+    fields = {"state": "observations", "action": "actions", "reward": "rewards"}
+    streams = cfg.denoiser.streams
+    norm = {s: prior.normalizer.normalize(fields[s], raw[s]).astype(np.float32) for s in streams}
+
+    edited = {s: np.empty((len(tiling.window_rows), cfg.horizon, norm[s].shape[-1]), np.float32) for s in streams}
+    edit = _editor(prior, config)
+    seed_key = jax.random.key(config.seed)
+    size = min(config.batch_size, max(len(tiling.window_rows), 1))
+    for first in range(0, len(tiling.window_rows), size):
+        rows = tiling.window_rows[first:first + size]
+        ids = np.arange(first, first + size)
+        padded = np.concatenate([rows, np.repeat(rows[-1:], size - len(rows), axis=0)])
+        keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(ids, jnp.uint32))
+        out = edit({s: norm[s][padded] for s in streams}, keys)
+        for s in streams:
+            edited[s][first:first + len(rows)] = np.asarray(out[s])[: len(rows)]
+
+    def transitions(stream: str, shift: int) -> np.ndarray:
+        window, position = tiling.transition_window, tiling.transition_position + shift
+        rows = tiling.window_rows[window, position]
+        values = edited[stream][window, position]
+        denormalize = functools.partial(prior.normalizer.denormalize, fields[stream])
+        return (raw[stream][rows] + (denormalize(values) - denormalize(norm[stream][rows]))).astype(np.float32)
+
+    observations = source.observations.copy()
+    next_out = next_observations.copy()
+    actions = source.actions.copy()
+    rewards = source.rewards.copy()
+    t = tiling.transition_steps
+    observations[t] = transitions("state", 0)
+    next_out[t] = transitions("state", 1)
+    actions[t] = transitions("action", 0)
+    if cfg.use_reward:
+        rewards[t] = transitions("reward", 0)[:, 0]
+    result = Dataset(
+        observations=observations, actions=actions, rewards=rewards, terminals=source.terminals,
+        timeouts=source.timeouts, next_observations=next_out, metadata=metadata,
+    )
+    report = {
+        "windows": int(len(tiling.window_rows)),
+        "transitions": int(len(t)),
+        "passed_through_episodes": int(tiling.passed_through.sum()),
+        "dropped_extras": sorted(source.extras),
+        "seconds": time.perf_counter() - began,
+    }
+    return result, report

@@ -1,0 +1,238 @@
+"""Schedule, denoiser and prior training (tiny configurations)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from xted.data import Dataset
+from xted.diffusion import (
+    CROSS_WIRING,
+    Denoiser,
+    DenoiserConfig,
+    EditConfig,
+    PriorConfig,
+    cosine_schedule,
+    ddim_step,
+    ddim_timesteps,
+    ddpm_step,
+    edit_dataset,
+    load_prior,
+    make_train_step,
+    preset,
+    q_sample,
+    train_prior,
+)
+from xted.diffusion.training import LOSS_WEIGHTS, init_train_state
+from xted.errors import InputError
+
+TINY = PriorConfig(
+    state_dim=3, action_dim=2, width_override=8, state_blocks=1, action_blocks=1, reward_blocks=1,
+    num_heads=2, cond_dim=16, horizon=4, num_timesteps=10, batch_size=16, learning_rate=3e-3, return_condition=True,
+)  # one config for all training tests: the train step compiles once
+
+
+def random_params(shapes, scale: float = 0.3, seed: int = 1):
+    """Random parameters of the given shapes (NumPy: no compilation), so every gate is active."""
+    rng = np.random.default_rng(seed)
+    return jax.tree.map(lambda x: (scale * rng.normal(size=x.shape)).astype(x.dtype), shapes)
+
+
+def smooth_dataset(episodes: int = 6, length: int = 30, seed: int = 0) -> Dataset:
+    """Sinusoidal trajectories: learnable structure for a tiny model."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(length)[:, None]
+    obs, act = [], []
+    for _ in range(episodes):
+        phase = rng.uniform(0, 2 * np.pi, size=3)
+        obs.append(np.sin(0.3 * t + phase))
+        act.append(np.cos(0.3 * t + phase[:2]))
+    obs, act = np.concatenate(obs), np.concatenate(act)
+    ends = np.zeros(len(obs), bool)
+    ends[length - 1 :: length] = True
+    return Dataset(
+        observations=obs, actions=act, rewards=obs[:, 0] + act[:, 0], terminals=np.zeros_like(ends),
+        timeouts=ends, next_observations=np.roll(obs, -1, axis=0),
+    )
+
+
+# ----------------------------------------------------------------------------------- schedule
+def test_schedule_sanity():
+    s = cosine_schedule(200)
+    abar = np.asarray(s.alphas_cumprod)
+    assert s.num_timesteps == 200
+    assert np.all(np.diff(abar) < 0) and 0.99 < abar[0] < 1 and abar[-1] < 1e-3
+    assert np.all(np.asarray(s.betas) <= 0.999)
+    x0 = jnp.linspace(-2, 2, 12).reshape(2, 3, 2)
+    noise = jax.random.normal(jax.random.key(0), x0.shape)
+    np.testing.assert_allclose(q_sample(s, x0, jnp.zeros(2, int), noise), x0, atol=0.05)
+    t = jnp.array([150, 150])
+    x_t = q_sample(s, x0, t, noise)
+    # With the true noise, DDIM to t_prev = -1 recovers x0; a DDPM step at t = 0 adds no noise.
+    np.testing.assert_allclose(ddim_step(s, x_t, t, jnp.array([-1, -1]), noise), x0, atol=1e-4)
+    zero = jnp.zeros(2, int)
+    np.testing.assert_array_equal(ddpm_step(s, x0, zero, noise, noise), ddpm_step(s, x0, zero, noise, 5 * noise))
+    clipped = ddpm_step(s, x_t, t, -noise * 50, jnp.zeros_like(x0), clip=1.0)
+    assert np.all(np.isfinite(clipped))
+
+
+def test_ddim_timesteps():
+    np.testing.assert_array_equal(ddim_timesteps(5, 5), [4, 3, 2, 1, 0])
+    seq = ddim_timesteps(100, 10)
+    assert seq[0] == 99 and seq[-1] == 0 and len(seq) == 10 and np.all(np.diff(seq) < 0)
+    np.testing.assert_array_equal(ddim_timesteps(7, 1), [6])
+    with pytest.raises(InputError):
+        ddim_timesteps(5, 6)
+
+
+# ----------------------------------------------------------------------------------- denoiser
+def _inputs(cfg: DenoiserConfig, b: int = 2, h: int | None = None, seed: int = 0):
+    h = h or cfg.horizon
+    k1, k2, k3 = jax.random.split(jax.random.key(seed), 3)
+    s = jax.random.normal(k1, (b, h, cfg.state_dim))
+    a = jax.random.normal(k2, (b, h, cfg.action_dim))
+    r = jax.random.normal(k3, (b, h, 1)) if cfg.use_reward else None
+    return s, a, r, jnp.array([0, 7])[:b], jnp.full((b,), 0.5)
+
+
+@pytest.fixture(scope="module")
+def tiny_model():
+    """The TINY return-conditioned denoiser, its inputs and (untrained) parameters."""
+    cfg = TINY.denoiser
+    model = Denoiser(cfg)
+    inputs = _inputs(cfg) + (jnp.array([True, False]),)
+    return jax.jit(model.apply), inputs, init_train_state(TINY, jax.random.key(0)).params
+
+
+def test_denoiser_shapes_and_zero_init(tiny_model):
+    apply, inputs, params = tiny_model
+    s, a, r = inputs[:3]
+    eps = apply(params, *inputs)
+    for e, x in zip(eps, (s, a, r)):
+        assert e.shape == x.shape
+        np.testing.assert_array_equal(e, 0.0)  # adaLN-Zero / zero decoder: untrained model predicts 0
+    assert {"state_encoder", "action_encoder", "reward_encoder", "condition"} <= set(params["params"])
+
+
+def test_high_dimensional_states_reward_free():
+    cfg = DenoiserConfig(state_dim=1024, action_dim=7, use_reward=False, width_override=16, horizon=5,
+                         state_blocks=1, action_blocks=1, cond_dim=16)
+    model = Denoiser(cfg)
+    s, a, r, t, _ = _inputs(cfg)
+    assert r is None
+    shapes = jax.eval_shape(model.init, jax.random.key(0), s, a, None, t)
+    assert "reward_encoder" not in shapes["params"] and "reward_cross" not in shapes["params"]
+    eps_s, eps_a, eps_r = jax.jit(model.apply)(random_params(shapes, 0.05), s, a, None, t)
+    assert eps_s.shape == (2, 5, 1024) and eps_a.shape == (2, 5, 7) and eps_r is None
+    assert np.all(np.isfinite(eps_s)) and not np.allclose(eps_s, 0.0)
+
+
+def test_width_and_heads():
+    cfg = DenoiserConfig(state_dim=17, action_dim=6)
+    assert [cfg.width(s) for s in cfg.streams] == [272, 96, 16]
+    assert [cfg.heads(s) for s in cfg.streams] == [4, 4, 4]
+    odd = DenoiserConfig(state_dim=3, action_dim=1, width_multiplier=2, min_width=5, num_heads=4)
+    assert (odd.width("state"), odd.heads("state")) == (6, 2)
+    assert (odd.width("reward"), odd.heads("reward")) == (5, 1)
+
+
+def test_cross_wiring(tiny_model):
+    assert CROSS_WIRING == (("state", ("action",)), ("action", ("state",)), ("reward", ("state", "action")))
+    jitted, (s, a, r, *rest), params = tiny_model
+    params = random_params(params)
+    apply = lambda s, a, r: jitted(params, s, a, r, *rest)  # noqa: E731
+    base = apply(s, a, r)
+    bump = lambda x: x.at[:, 1:].add(1.0)  # noqa: E731
+    out_r, out_a, out_s = apply(s, a, bump(r)), apply(s, bump(a), r), apply(bump(s), a, r)
+    # Rewards never feed back into states or actions.
+    np.testing.assert_array_equal(out_r[0], base[0])
+    np.testing.assert_array_equal(out_r[1], base[1])
+    assert not np.allclose(out_r[2], base[2])
+    # State and action inform each other; the reward stream draws on both.
+    assert not np.allclose(out_a[0], base[0]) and not np.allclose(out_s[1], base[1])
+    assert not np.allclose(out_a[2], base[2]) and not np.allclose(out_s[2], base[2])
+    # Reward-free models have no reward block at all.
+    assert dataclasses.replace(TINY.denoiser, use_reward=False).cross_wiring == CROSS_WIRING[:2]
+
+
+# ----------------------------------------------------------------------------------- training
+def test_presets():
+    paper = preset("paper", 17, 6)
+    assert (paper.width_multiplier, paper.state_blocks, paper.action_blocks, paper.reward_blocks) == (16, 2, 2, 1)
+    assert (paper.horizon, paper.num_timesteps, paper.return_condition) == (20, 200, True)
+    assert preset("cpu", 17, 6, seed=3).seed == 3
+    with pytest.raises(InputError, match="unknown prior preset"):
+        preset("huge", 17, 6)
+    with pytest.raises(InputError, match="loss_weighting"):
+        PriorConfig(state_dim=3, action_dim=2, loss_weighting="bogus")
+
+
+def test_loss_weights():
+    snr = jnp.array([0.5, 5.0, 20.0])
+    np.testing.assert_allclose(LOSS_WEIGHTS["uniform"](snr), 1.0)
+    np.testing.assert_allclose(LOSS_WEIGHTS["min_snr"](snr), [1.0, 1.0, 0.25])
+
+
+def _sine_batch(b: int, h: int, seed: int) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.arange(h)[None, :, None]
+    phase = rng.uniform(0, 6, size=(b, 1, 3))
+    return {
+        "state": np.sin(0.3 * t + phase).astype(np.float32),
+        "action": np.cos(0.3 * t + phase[..., :2]).astype(np.float32),
+        "reward": np.sin(0.3 * t + phase[..., :1]).astype(np.float32),
+        "loss_mask": np.broadcast_to(np.arange(h) > 0, (b, h)),
+        "returns": rng.uniform(size=b).astype(np.float32),
+    }
+
+
+def test_loss_decreases():
+    config = TINY
+    state = init_train_state(config, jax.random.key(0))
+    step = make_train_step(config)
+    key = jax.random.key(1)
+    held_out = [_sine_batch(config.batch_size, config.horizon, seed=1000 + i) for i in range(4)]
+
+    def held_out_loss(state) -> float:
+        # The step's loss is computed before its update; at step 0 the noise is the same for every state.
+        return float(np.mean([step(state.replace(step=jnp.zeros((), jnp.int32)), b, key)[1]["loss"] for b in held_out]))
+
+    before = held_out_loss(state)
+    for i in range(50):
+        state, metrics = step(state, _sine_batch(config.batch_size, config.horizon, seed=i), key)
+    assert np.isfinite(float(metrics["loss"]))
+    assert int(state.step) == 50
+    assert held_out_loss(state) < 0.8 * before
+
+
+def _flat(tree) -> np.ndarray:
+    return np.concatenate([np.ravel(x) for x in jax.tree.leaves(tree)])
+
+
+def test_train_prior_resume_and_refuse(tmp_path):
+    data = smooth_dataset()
+    config = TINY
+    kw = dict(progress=False, log_every=5, checkpoint_every=5)
+    train_prior(data, tmp_path / "a", config, steps=10, **kw)
+    train_prior(data, tmp_path / "a", config, steps=20, **kw)  # resumes from step 10
+    train_prior(data, tmp_path / "b", config, steps=20, **kw)
+    a, b = load_prior(tmp_path / "a"), load_prior(tmp_path / "b")
+    assert a.step == b.step == 20 and a.config == config
+    np.testing.assert_allclose(_flat(a.params), _flat(b.params), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(a.normalizer.mean["observations"], data.observations.mean(0), atol=1e-5)
+    lo, hi = a.return_range
+    assert lo < hi
+    edited, report = edit_dataset(a, data, EditConfig(batch_size=8))  # the loaded prior edits
+    assert len(edited) == len(data) and report["windows"] == 6 * 10
+    assert edited.metadata["edit"]["prior"] == str((tmp_path / "a").resolve())
+    with (tmp_path / "a" / "log.csv").open() as f:
+        assert [int(r["step"]) for r in csv.DictReader(f)] == [5, 10, 15, 20]
+    with pytest.raises(InputError, match="different config"):
+        train_prior(data, tmp_path / "a", dataclasses.replace(config, learning_rate=1e-4), steps=30, **kw)
+    with pytest.raises(InputError, match="no prior.json"):
+        load_prior(tmp_path / "missing")

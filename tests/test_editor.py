@@ -1,0 +1,149 @@
+"""Editing windows and datasets with a (random, untrained) tiny prior."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import jax
+import numpy as np
+import pytest
+from conftest import build_dataset
+from test_diffusion import TINY
+
+from xted.data import Normalizer
+from xted.diffusion import EditConfig, Prior, PriorConfig, edit_dataset, edit_windows
+from xted.diffusion.editor import _plan
+from xted.diffusion.training import init_train_state
+from xted.errors import InputError
+
+H = TINY.horizon  # 4: windows overlap by one state, stride 3
+LENGTHS = (9, 10, 2, 12)  # 10 states -> 3 windows; 11 -> 3 + 1 aligned to the end; too short; 13 -> 4
+BATCH = 8  # windows per editor call, in every test: one compilation per edit plan
+
+
+def random_prior(config: PriorConfig, seed: int = 0) -> Prior:
+    """A prior with random parameters (no training, no init compilation)."""
+    shapes = jax.eval_shape(functools.partial(init_train_state, config), jax.random.key(0)).params
+    rng = np.random.default_rng(seed)
+    params = jax.tree.map(lambda x: (0.3 * rng.normal(size=x.shape)).astype(x.dtype), shapes)
+    data = build_dataset(lengths=LENGTHS, obs_dim=config.state_dim, act_dim=config.action_dim)
+    return Prior(config, Normalizer.fit(data), params, return_range=(-5.0, 5.0))
+
+
+@pytest.fixture(scope="module")
+def prior() -> Prior:
+    return random_prior(TINY)
+
+
+@pytest.fixture(scope="module")
+def source():
+    return build_dataset(lengths=LENGTHS, obs_dim=3, act_dim=2, seed=1)
+
+
+@pytest.fixture(scope="module")
+def edited(prior, source):
+    return edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0))
+
+
+def _windows(b: int = BATCH, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    return tuple(rng.normal(size=(b, H, d)).astype(np.float32) for d in (3, 2, 1))
+
+
+@pytest.mark.parametrize("hold_last", [False, True])
+def test_edit_windows_holds_transitions(prior, hold_last):
+    s, a, r = _windows()
+    out = edit_windows(prior, s, a, r, EditConfig(hold_last=hold_last), jax.random.key(0))
+    for x, y in zip((s, a, r), out):
+        y = np.asarray(y)
+        assert y.shape == x.shape and np.all(np.isfinite(y))
+        np.testing.assert_array_equal(y[:, 0], x[:, 0])
+        if hold_last:
+            np.testing.assert_array_equal(y[:, -1], x[:, -1])
+        assert not np.allclose(y[:, 1:-1], x[:, 1:-1])
+
+
+def test_reverse_chain_starts_at_k(prior):
+    # K = 10, kappa = 0.5: noise to t = k - 1 = 4, then exactly k = 5 model calls t = 4 .. 0.
+    assert _plan(prior, EditConfig()).timesteps == (4, 3, 2, 1, 0)
+    assert _plan(prior, EditConfig(kappa=1.0)).timesteps == tuple(range(9, -1, -1))
+    assert _plan(prior, EditConfig(kappa=0.5, sampler="ddim", sampler_steps=3)).timesteps == (4, 2, 0)
+
+
+def test_kappa_zero_windows_identity(prior):
+    s, a, r = _windows()
+    out = edit_windows(prior, s, a, r, EditConfig(kappa=0.0), jax.random.key(0))
+    assert all(y is x for x, y in zip((s, a, r), out))
+
+
+def test_kappa_zero_dataset_unchanged(prior, source):
+    result, report = edit_dataset(prior, source, EditConfig(kappa=0.0))
+    for name in ("observations", "actions", "rewards", "terminals", "timeouts", "next_observations"):
+        np.testing.assert_array_equal(getattr(result, name), getattr(source, name), err_msg=name)
+    assert sorted(result.extras) == sorted(source.extras)
+    assert report["windows"] == 0 and result.metadata["edit"]["noise_steps"] == 0
+
+
+def test_edit_dataset_transitions(source, edited):
+    result, report = edited
+    assert len(result) == len(source)
+    np.testing.assert_array_equal(result.terminals, source.terminals)
+    np.testing.assert_array_equal(result.timeouts, source.timeouts)
+    assert report["windows"] == 3 + 4 + 4 and report["transitions"] == 9 + 10 + 12
+    assert report["passed_through_episodes"] == 1
+    assert result.extras == {} and report["dropped_extras"] == sorted(source.extras)
+    assert result.metadata["edit"]["config"]["kappa"] == 0.5 and result.metadata["env"] == "Toy-v0"
+
+    starts = np.cumsum((0,) + LENGTHS)
+    for (start, length) in zip(starts, LENGTHS):
+        steps = np.arange(start, start + length)
+        if length + 1 < H:  # passed through unedited
+            for name in ("observations", "actions", "rewards", "next_observations"):
+                np.testing.assert_array_equal(getattr(result, name)[steps], getattr(source, name)[steps])
+            continue
+        regular = (length + 1 - H) // (H - 1) + 1
+        for t in range(length):
+            if t % (H - 1) == 0 and t // (H - 1) < regular:  # held first transition of a window
+                np.testing.assert_array_equal(result.observations[start + t], source.observations[start + t])
+                np.testing.assert_array_equal(result.actions[start + t], source.actions[start + t])
+                np.testing.assert_array_equal(result.rewards[start + t], source.rewards[start + t])
+            if t + 1 < length and (t + 1) % (H - 1) != 0 and (t + 1) // (H - 1) < regular:  # same window
+                np.testing.assert_array_equal(result.next_observations[start + t], result.observations[start + t + 1])
+        interior = steps[np.arange(length) % (H - 1) != 0]
+        assert not np.allclose(result.observations[interior], source.observations[interior])
+
+
+def test_edit_dataset_deterministic(prior, source, edited):
+    again, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0))
+    other, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=1))
+    for name in ("observations", "actions", "rewards", "next_observations"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(edited[0], name), err_msg=name)
+    assert not np.allclose(other.observations, again.observations)
+
+
+def test_ddim_with_guidance(prior):
+    s, a, r = _windows()
+    config = EditConfig(sampler="ddim", sampler_steps=2, guidance=2.0, iterations=2)
+    out = edit_windows(prior, s, a, r, config, jax.random.key(0))
+    assert all(np.all(np.isfinite(np.asarray(y))) for y in out)
+    np.testing.assert_array_equal(np.asarray(out[0])[:, 0], s[:, 0])
+    again = edit_windows(prior, s, a, r, config, jax.random.key(0))
+    np.testing.assert_array_equal(np.asarray(again[0]), np.asarray(out[0]))  # DDIM (eta = 0) is deterministic
+    with pytest.raises(InputError, match="exceeds"):
+        edit_windows(prior, s, a, r, dataclasses.replace(config, sampler_steps=6), jax.random.key(0))
+    with pytest.raises(InputError, match="ddim sampler only"):
+        EditConfig(sampler_steps=3)
+
+
+def test_reward_free_prior_carries_rewards(source):
+    prior = random_prior(dataclasses.replace(TINY, use_reward=False, return_condition=False))
+    result, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH))
+    np.testing.assert_array_equal(result.rewards, source.rewards)
+    assert not np.allclose(result.observations, source.observations)
+
+
+def test_dimension_mismatch(prior):
+    wrong = build_dataset(lengths=LENGTHS, obs_dim=4, act_dim=2)
+    with pytest.raises(InputError, match=r"\(4, 2\).*\(3, 2\)"):
+        edit_dataset(prior, wrong, EditConfig())
