@@ -147,3 +147,4 @@ def test_dimension_mismatch(prior):
     wrong = build_dataset(lengths=LENGTHS, obs_dim=4, act_dim=2)
     with pytest.raises(InputError, match=r"\(4, 2\).*\(3, 2\)"):
         edit_dataset(prior, wrong, EditConfig())
+

@@ -38,3 +38,8 @@ def find(name: str) -> Path | None:
     if entry is None:
         return None
     return assets_dir() / entry["file"]
+
+
+def prior_dir(name: str) -> Path:
+    """The folder of the shipped (exported) prior called ``name``."""
+    return assets_dir().parent / "priors" / name

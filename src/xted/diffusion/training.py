@@ -18,12 +18,14 @@ import dataclasses
 import functools
 import hashlib
 import json
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import flax.serialization
 import flax.struct
 import jax
 import jax.numpy as jnp
@@ -469,14 +471,45 @@ class Prior:
         return cosine_schedule(self.config.num_timesteps)
 
 
+EXPORTED_PARAMS = "params.msgpack"
+
+
+def export_prior(prior_dir: str | Path, dest: str | Path) -> Path:
+    """Write an inference-only copy of a prior (``prior.json`` + EMA parameters): small enough to ship."""
+    prior = load_prior(prior_dir)
+    dest = Path(dest)
+    with atomic_path(dest) as tmp:
+        tmp.mkdir()
+        shutil.copyfile(Path(prior_dir) / "prior.json", tmp / "prior.json")
+        payload = {"params": jax.device_get(prior.params), "step": prior.step}
+        (tmp / EXPORTED_PARAMS).write_bytes(flax.serialization.msgpack_serialize(payload))
+    return dest
+
+
 def load_prior(out_dir: str | Path) -> Prior:
-    """The latest checkpoint's EMA parameters with the config and normaliser of ``out_dir``."""
+    """The EMA parameters (latest checkpoint, or an exported prior) with the config and normaliser."""
     out_dir = Path(out_dir)
     meta_path = out_dir / "prior.json"
     if not meta_path.exists():
         raise InputError(f"{out_dir}: no prior.json (not a prior folder)")
     meta = _read_json(meta_path)
     config = PriorConfig.from_dict(meta["config"])
+    if (out_dir / EXPORTED_PARAMS).exists():
+        payload = flax.serialization.msgpack_restore((out_dir / EXPORTED_PARAMS).read_bytes())
+        params, step = payload["params"], int(payload["step"])
+    else:
+        params, step = _restore_ema(out_dir, config)
+    return Prior(
+        config=config,
+        normalizer=Normalizer.from_dict(meta["normalizer"]),
+        params=params,
+        return_range=tuple(meta["return_range"]),
+        step=step,
+        path=str(out_dir.resolve()),
+    )
+
+
+def _restore_ema(out_dir: Path, config: PriorConfig) -> tuple[Any, int]:
     manager = _checkpoint_manager(out_dir)
     step = manager.latest_step()
     if step is None:
@@ -487,11 +520,4 @@ def load_prior(out_dir: str | Path) -> Prior:
         step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract), sampler=ocp.args.JsonRestore())
     )
     manager.close()
-    return Prior(
-        config=config,
-        normalizer=Normalizer.from_dict(meta["normalizer"]),
-        params=restored.state.ema_params,
-        return_range=tuple(meta["return_range"]),
-        step=int(step),
-        path=str(out_dir.resolve()),
-    )
+    return restored.state.ema_params, int(step)

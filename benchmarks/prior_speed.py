@@ -1,0 +1,103 @@
+"""Speed of the prior: train steps/s, FLOPs per step (XLA cost analysis), achieved GFLOP/s next to
+a matmul peak measured in the same run, and editing transitions/s (DDPM and DDIM).
+
+    python benchmarks/prior_speed.py --target halfcheetah-medium-replay --presets cpu paper \
+        [--steps 20] [--edit-transitions 20000] [--set F=V ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from xted.cli.commands import parse_overrides
+from xted.data import load
+from xted.diffusion.editor import EditConfig, edit_dataset
+from xted.diffusion.training import (PriorConfig, Prior, _window_sampler, init_train_state, make_train_step,
+                                     preset)
+from xted.data.normalizer import Normalizer
+
+
+def median_seconds(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(fn())
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def matmul_peak(n: int = 2048, repeats: int = 10) -> float:
+    """fp32 GFLOP/s of one n x n matmul through XLA."""
+    a = jnp.ones((n, n), jnp.float32)
+    f = jax.jit(lambda x: x @ x)
+    jax.block_until_ready(f(a))
+    return 2 * n**3 / median_seconds(lambda: f(a), repeats) / 1e9
+
+
+def step_cost(config: PriorConfig, data, repeats: int) -> dict:
+    state = init_train_state(config, jax.random.key(0))
+    sampler, _ = _window_sampler(data, Normalizer.fit(data), config)
+    batch = sampler.batch(np.random.default_rng(0), config.batch_size)
+    step = make_train_step(config)
+    rng = jax.random.key(1)
+    flops = step.lower(state, batch, rng).compile().cost_analysis()
+    flops = (flops[0] if isinstance(flops, list) else flops)["flops"]
+    holder = {"state": state}
+
+    def run():
+        holder["state"], metrics = step(holder["state"], batch, rng)
+        return metrics["loss"]
+
+    run()
+    seconds = median_seconds(run, repeats)
+    params = sum(x.size for x in jax.tree.leaves(state.params))
+    return {"params": int(params), "step_seconds": seconds, "steps_per_second": 1 / seconds,
+            "gflop_per_step": flops / 1e9, "achieved_gflops": flops / seconds / 1e9, "state": holder["state"]}
+
+
+def edit_speed(config: PriorConfig, state, data, transitions: int) -> dict:
+    source = data.select_episodes(np.arange(data.num_episodes))  # a copy
+    ends = np.cumsum(source.episode_lengths())
+    keep = int(np.searchsorted(ends, transitions) + 1)
+    source = source.select_episodes(np.arange(min(keep, source.num_episodes)))
+    prior = Prior(config=config, normalizer=Normalizer.fit(data), params=state.ema_params, return_range=(0.0, 1.0))
+    out = {}
+    for name, edit in (("ddpm", EditConfig()), ("ddim-10", EditConfig(sampler="ddim", sampler_steps=10))):
+        edit_dataset(prior, source.select_episodes([0]), edit)  # compile
+        start = time.perf_counter()
+        edit_dataset(prior, source, edit)
+        seconds = time.perf_counter() - start
+        out[name] = {"transitions": len(source), "seconds": seconds, "transitions_per_second": len(source) / seconds}
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--target", required=True)
+    parser.add_argument("--presets", nargs="+", default=["cpu", "paper"])
+    parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--edit-transitions", type=int, default=20_000)
+    parser.add_argument("--set", dest="overrides", nargs="*", default=[])
+    args = parser.parse_args()
+    data = load(args.target)
+    peak = matmul_peak()
+    print(json.dumps({"matmul_peak_gflops": peak, "devices": str(jax.devices())}), flush=True)
+    for name in args.presets:
+        config = preset(name, data.observation_dim, data.action_dim,
+                        **(parse_overrides(PriorConfig, args.overrides) if name == "cpu" else {}))
+        cost = step_cost(config, data, args.steps)
+        state = cost.pop("state")
+        result = {"preset": name, **cost, "fraction_of_peak": cost["achieved_gflops"] / peak}
+        if args.edit_transitions:
+            result["edit"] = edit_speed(config, state, data, args.edit_transitions)
+        print(json.dumps(result), flush=True)
+
+
+if __name__ == "__main__":
+    main()

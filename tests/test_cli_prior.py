@@ -1,0 +1,80 @@
+import json
+
+import jax
+import numpy as np
+import pytest
+from conftest import build_dataset
+
+from xted.cli.main import main
+from xted.data import load, save
+from xted.diffusion.training import export_prior, load_prior
+
+TINY = ["--set", "width_override=8", "--set", "state_blocks=1", "--set", "action_blocks=1", "--set", "cond_dim=16",
+        "--set", "horizon=5", "--set", "batch_size=8", "--set", "num_timesteps=10", "--set", "warmup_steps=0"]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("prior")
+    target = build_dataset(lengths=(12, 9, 15), obs_dim=3, act_dim=2, seed=0)
+    source = build_dataset(lengths=(10, 8), obs_dim=3, act_dim=2, seed=1)
+    save(target, folder / "target.npz")
+    save(source, folder / "source.hdf5")
+    rc = main(["train", "--target", str(folder / "target.npz"), "--out", str(folder / "prior"), "--steps", "4",
+               "--checkpoint-every", "2", *TINY])
+    assert rc == 0
+    return folder
+
+
+def test_train_writes_config_log_and_checkpoints(files):
+    meta = json.loads((files / "prior" / "prior.json").read_text())
+    assert meta["config"]["width_override"] == 8 and meta["config"]["horizon"] == 5
+    assert "normalizer" in meta
+    assert load_prior(files / "prior").step == 4
+    assert (files / "prior" / "log.csv").read_text().count("\n") >= 2
+
+
+def test_edit_cli_writes_the_named_format(files, capsys):
+    out = files / "edited.npz"
+    assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"),
+                 "--out", str(out), "--kappa", "0.5", "--seed", "3"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    edited, source = load(out), load(files / "source.hdf5")
+    assert report["transitions"] == len(source) == len(edited)
+    np.testing.assert_array_equal(edited.terminals, source.terminals)
+    assert edited.metadata["edit"]["config"]["kappa"] == 0.5
+    assert not np.array_equal(edited.observations, source.observations)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--kappa", "1.5"], "kappa"),
+    (["--sampler", "euler"], "sampler"),
+])
+def test_edit_cli_refuses_bad_options(files, args, needle, capsys):
+    out = files / "bad.npz"
+    rc = main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--out", str(out), *args])
+    assert rc == 2 and needle in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_edit_cli_refuses_mismatched_dims(files, capsys):
+    other = build_dataset(lengths=(10,), obs_dim=4, act_dim=2, seed=2)
+    save(other, files / "wide.npz")
+    rc = main(["edit", "--prior", str(files / "prior"), "--source", str(files / "wide.npz"), "--out",
+               str(files / "x.npz")])
+    assert rc == 2 and "dim" in capsys.readouterr().err
+    assert not (files / "x.npz").exists()
+
+
+def test_train_refuses_unknown_fields(files, capsys):
+    rc = main(["train", "--target", str(files / "target.npz"), "--out", str(files / "p2"), "--set", "widht=3"])
+    assert rc == 2 and "widht" in capsys.readouterr().err
+
+
+def test_exported_prior_equals_the_checkpoint(files, tmp_path):
+    exported = export_prior(files / "prior", tmp_path / "exported")
+    assert not (exported / "checkpoints").exists()
+    a, b = load_prior(files / "prior"), load_prior(exported)
+    assert a.step == b.step
+    for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(b.params)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
