@@ -32,6 +32,20 @@ def median_seconds(fn, repeats: int) -> float:
     return float(np.median(times))
 
 
+def time_update(update, state, *args, repeats: int) -> tuple[float, float, object]:
+    """(XLA-counted FLOPs, median seconds, final state) of ``state = update(state, *args)[0]``."""
+    cost = update.lower(state, *args).compile().cost_analysis()
+    flops = (cost[0] if isinstance(cost, list) else cost)["flops"]
+    holder = {"state": state}
+
+    def run():
+        holder["state"], metrics = update(holder["state"], *args)
+        return metrics
+
+    run()
+    return flops, median_seconds(run, repeats), holder["state"]
+
+
 def matmul_peak(n: int = 2048, repeats: int = 10) -> float:
     """fp32 GFLOP/s of one n x n matmul through XLA."""
     a = jnp.ones((n, n), jnp.float32)
@@ -44,21 +58,10 @@ def step_cost(config: PriorConfig, data, repeats: int) -> dict:
     state = init_train_state(config, jax.random.key(0))
     sampler, _ = _window_sampler(data, Normalizer.fit(data), config)
     batch = sampler.batch(np.random.default_rng(0), config.batch_size)
-    step = make_train_step(config)
-    rng = jax.random.key(1)
-    flops = step.lower(state, batch, rng).compile().cost_analysis()
-    flops = (flops[0] if isinstance(flops, list) else flops)["flops"]
-    holder = {"state": state}
-
-    def run():
-        holder["state"], metrics = step(holder["state"], batch, rng)
-        return metrics["loss"]
-
-    run()
-    seconds = median_seconds(run, repeats)
+    flops, seconds, final = time_update(make_train_step(config), state, batch, jax.random.key(1), repeats=repeats)
     params = sum(x.size for x in jax.tree.leaves(state.params))
     return {"params": int(params), "step_seconds": seconds, "steps_per_second": 1 / seconds,
-            "gflop_per_step": flops / 1e9, "achieved_gflops": flops / seconds / 1e9, "state": holder["state"]}
+            "gflop_per_step": flops / 1e9, "achieved_gflops": flops / seconds / 1e9, "state": final}
 
 
 def edit_speed(config: PriorConfig, state, data, transitions: int) -> dict:

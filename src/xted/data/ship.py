@@ -41,9 +41,9 @@ def file_entry(path: Path, root: Path) -> dict:
     return {"file": str(path.relative_to(root)), "sha256": sha256(path), "bytes": path.stat().st_size}
 
 
-def _ship_policies(env: str, runs: Path, folder: Path) -> dict:
+def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -> dict:
     entries = {}
-    for gap in (None, *PAPER_GAPS[env]):
+    for gap in gaps:
         domain = parse_domain(env, gap)
         run = runs / domain.name
         chosen = BehaviourPolicies.from_run(run)
@@ -74,6 +74,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=Path, required=True)
     parser.add_argument("--envs", nargs="+", default=["halfcheetah", "walker2d"])
+    parser.add_argument("--domains", nargs="+", default=["target", *sorted({g for gaps in PAPER_GAPS.values() for g in gaps})],
+                        help="which of target and the paper's gaps to ship (default: all)")
     parser.add_argument("--transitions", type=int, default=20_000)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
@@ -84,8 +86,9 @@ def main(argv: list[str] | None = None) -> None:
     manifest_path = data_root / MANIFEST_NAME
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"datasets": {}, "policies": {}}
     for env in args.envs:
-        manifest["policies"].update(_ship_policies(env, args.runs, policy_root))
-        jobs = [(None, level) for level in TARGET_LEVELS] + [(gap, "source") for gap in PAPER_GAPS[env]]
+        gaps = [None if name == "target" else name for name in args.domains]
+        manifest["policies"].update(_ship_policies(env, gaps, args.runs, policy_root))
+        jobs = [(None, level) for level in TARGET_LEVELS if None in gaps] + [(gap, "source") for gap in gaps if gap]
         for gap, level in jobs:
             domain = parse_domain(env, gap)
             name = f"{env}-{level}" if gap is None else domain.name
