@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from xted.cli.commands import parse_overrides
+from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import PriorConfig, load_prior, preset, train_prior

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from xted.cli.commands import parse_overrides
+from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import (PriorConfig, Prior, _window_sampler, init_train_state, make_train_step,

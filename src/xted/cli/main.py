@@ -27,7 +27,7 @@ _SUBAPPS = [
     ("xted.cli.sac", "app", "sac"),
 ]
 # (module, attribute) of modules that register top-level commands on ``app``.
-_COMMAND_MODULES = ["xted.cli.commands"]
+_COMMAND_MODULES = ["xted.cli.commands", "xted.cli.policy"]
 
 
 def _register() -> None:

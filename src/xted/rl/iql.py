@@ -1,0 +1,138 @@
+"""Implicit Q-Learning (Kostrikov, Nair & Levine 2022): pure losses composed in one jitted update.
+
+As in the reference implementation (ikostrikov/implicit_q_learning, ``learner.py: _update_jit``):
+V is an expectile regression of the target twin-Q minimum, the actor is advantage-weighted regression
+with weights ``exp(temperature * (Q - V))`` clipped at 100, Q regresses ``r + discount * mask * V(s')``,
+then the target critic moves by ``tau``. The actor is the reference's locomotion actor: a Gaussian with a
+tanh-squashed mean and a learned state-independent log-std, its learning rate cosine-decayed to zero over
+the run; evaluation acts with the mean. Rewards are used as given unless ``normalize_rewards`` asks for the
+reference's locomotion scaling, ``1000 / (max episode return - min episode return)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from functools import partial
+from typing import Sequence
+
+import flax
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from flax.training.train_state import TrainState
+
+from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, MLP, Critic, ValueNet
+
+
+@dataclasses.dataclass(frozen=True)
+class IQLConfig:
+    hidden: tuple[int, ...] = (256, 256)
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    value_lr: float = 3e-4
+    discount: float = 0.99
+    tau: float = 0.005
+    expectile: float = 0.7
+    temperature: float = 3.0
+    max_weight: float = 100.0
+    batch_size: int = 256
+    normalize_rewards: bool = False
+
+
+class GaussianPolicy(nn.Module):
+    """``__call__`` returns (tanh-squashed mean, state-independent log-std broadcast to the batch)."""
+
+    hidden: Sequence[int]
+    action_dim: int
+
+    @nn.compact
+    def __call__(self, obs):
+        mean = jnp.tanh(MLP(self.hidden, self.action_dim)(obs))
+        log_std = self.param("log_std", nn.initializers.zeros, (self.action_dim,))
+        return mean, jnp.broadcast_to(jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX), mean.shape)
+
+
+@flax.struct.dataclass
+class IQLState:
+    actor: TrainState
+    critic: TrainState
+    target_critic_params: dict
+    value: TrainState
+
+
+def init_iql(rng, obs_dim: int, action_dim: int, config: IQLConfig, steps: int) -> IQLState:
+    """Fresh networks; ``steps`` is the run's length, over which the actor's learning rate decays."""
+    actor_key, critic_key, value_key = jax.random.split(rng, 3)
+    obs, act = jnp.zeros((1, obs_dim)), jnp.zeros((1, action_dim))
+    actor_def = GaussianPolicy(config.hidden, action_dim)
+    critic_def, value_def = Critic(config.hidden), ValueNet(config.hidden)
+    actor = TrainState.create(apply_fn=actor_def.apply, params=actor_def.init(actor_key, obs)["params"],
+                              tx=optax.adam(optax.cosine_decay_schedule(config.actor_lr, max(steps, 1))))
+    critic_params = critic_def.init(critic_key, obs, act)["params"]
+    critic = TrainState.create(apply_fn=critic_def.apply, params=critic_params, tx=optax.adam(config.critic_lr))
+    value = TrainState.create(apply_fn=value_def.apply, params=value_def.init(value_key, obs)["params"],
+                              tx=optax.adam(config.value_lr))
+    return IQLState(actor, critic, critic_params, value)
+
+
+def expectile_loss(diff, expectile: float):
+    weight = jnp.where(diff > 0, expectile, 1.0 - expectile)
+    return weight * diff**2
+
+
+def gaussian_log_prob(mean, log_std, action):
+    return jnp.sum(-0.5 * ((action - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
+
+
+def _target_q(state: IQLState, batch):
+    q = state.critic.apply_fn({"params": state.target_critic_params}, batch["observations"], batch["actions"])
+    return q.min(axis=0)
+
+
+def value_loss(value_params, state: IQLState, batch, config: IQLConfig):
+    v = state.value.apply_fn({"params": value_params}, batch["observations"])
+    loss = expectile_loss(_target_q(state, batch) - v, config.expectile).mean()
+    return loss, {"value_loss": loss, "v": v.mean()}
+
+
+def actor_loss(actor_params, state: IQLState, batch, config: IQLConfig):
+    advantage = _target_q(state, batch) - state.value.apply_fn({"params": state.value.params}, batch["observations"])
+    weights = jnp.minimum(jnp.exp(config.temperature * advantage), config.max_weight)
+    mean, log_std = state.actor.apply_fn({"params": actor_params}, batch["observations"])
+    loss = -(weights * gaussian_log_prob(mean, log_std, batch["actions"])).mean()
+    return loss, {"actor_loss": loss, "advantage": advantage.mean()}
+
+
+def critic_loss(critic_params, state: IQLState, batch, config: IQLConfig):
+    next_v = state.value.apply_fn({"params": state.value.params}, batch["next_observations"])
+    target = batch["rewards"] + config.discount * (1.0 - batch["terminals"]) * next_v
+    q = state.critic.apply_fn({"params": critic_params}, batch["observations"], batch["actions"])
+    loss = ((q - target) ** 2).mean(axis=-1).sum()
+    return loss, {"critic_loss": loss, "q": q.mean()}
+
+
+@partial(jax.jit, static_argnames="config")
+def iql_update(state: IQLState, batch, config: IQLConfig):
+    """One IQL step: value, then actor (on the new value), then critic, then the target critic."""
+    grads, info = jax.grad(value_loss, has_aux=True)(state.value.params, state, batch, config)
+    state = state.replace(value=state.value.apply_gradients(grads=grads))
+    grads, actor_info = jax.grad(actor_loss, has_aux=True)(state.actor.params, state, batch, config)
+    state = state.replace(actor=state.actor.apply_gradients(grads=grads))
+    grads, critic_info = jax.grad(critic_loss, has_aux=True)(state.critic.params, state, batch, config)
+    critic = state.critic.apply_gradients(grads=grads)
+    target = optax.incremental_update(critic.params, state.target_critic_params, config.tau)
+    return state.replace(critic=critic, target_critic_params=target), {**info, **actor_info, **critic_info}
+
+
+def iql_act(actor: TrainState, obs):
+    """The mean action."""
+    return actor.apply_fn({"params": actor.params}, obs)[0]
+
+
+def locomotion_reward_scale(episode_returns: np.ndarray) -> float:
+    """The reference's locomotion reward scale, ``1000 / (max return - min return)`` (1 if all equal)."""
+    spread = float(np.max(episode_returns) - np.min(episode_returns))
+    return 1000.0 / spread if spread > 0 and math.isfinite(spread) else 1.0

@@ -1,0 +1,285 @@
+"""Offline policy learning on a target dataset mixed with source datasets, several seeds at once.
+
+Every algorithm is a frozen config (its hyperparameters) plus ``init`` / ``update`` / ``act``. Training
+runs ``lax.scan`` over jitted updates, each seed with its own batches drawn on device, and ``jax.vmap``
+over the seeds' stacked states; :func:`train_steps` is the single-seed path through the same update.
+Observations are standardised with the training data's mean and std (+1e-3, as TD3+BC does); the
+evaluation policy standardises the same way before acting. S4RL's Gaussian state noise
+(``s4rl_noise``, in standardised units) perturbs the states of each batch, for any algorithm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from functools import partial
+from pathlib import Path
+from typing import Any, Callable, NamedTuple, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from tqdm.auto import tqdm
+
+from xted.atomic import atomic_path
+from xted.data import Dataset
+from xted.envs import Domain, make
+from xted.errors import InputError
+from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
+from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
+from xted.rl.evaluation import PolicyFn, evaluate
+from xted.rl.iql import IQLConfig, iql_act, iql_update, init_iql, locomotion_reward_scale
+from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
+
+AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig
+Learner = IQLConfig | TD3BCConfig | BCConfig
+ALGORITHMS: dict[str, type] = {"iql": IQLConfig, "td3bc": TD3BCConfig, "bc": BCConfig, "dara": DARAConfig}
+OBS_STD_EPS = 1e-3
+
+
+class Algorithm(NamedTuple):
+    init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state
+    update: Callable[..., Any]  # (state, batch, config) -> (state, info)
+    act: Callable[..., Any]  # (actor TrainState, standardised obs) -> actions
+
+
+_ALGORITHMS: dict[type, Algorithm] = {
+    IQLConfig: Algorithm(init_iql, iql_update, iql_act),
+    TD3BCConfig: Algorithm(lambda rng, o, a, config, steps: init_td3bc(rng, o, a, config), td3bc_update,
+                           deterministic_act),
+    BCConfig: Algorithm(lambda rng, o, a, config, steps: init_bc(rng, o, a, config),
+                        lambda state, batch, config: bc_update(state, batch), deterministic_act),
+}
+
+
+def default_config(name: str) -> AlgoConfig:
+    if name not in ALGORITHMS:
+        raise InputError(f"unknown algorithm {name!r}; known: {', '.join(ALGORITHMS)}")
+    return ALGORITHMS[name]()
+
+
+def algorithm_name(config: AlgoConfig) -> str:
+    return next(name for name, kind in ALGORITHMS.items() if isinstance(config, kind))
+
+
+def learner_config(config: AlgoConfig) -> Learner:
+    """The config of the networks trained: DARA's IQL backbone, else the config itself."""
+    return config.iql if isinstance(config, DARAConfig) else config
+
+
+# ------------------------------------------------------------------------------------------- data
+@dataclasses.dataclass(frozen=True, eq=False)
+class OfflineData:
+    """Training arrays (observations standardised), the standardisation, and the target's share."""
+
+    arrays: dict[str, np.ndarray]  # observations, actions, rewards, next_observations, terminals
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    target_size: int
+
+
+def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards: bool = False) -> OfflineData:
+    """Target then sources as flat arrays; with ``normalize_rewards`` IQL's locomotion reward scale."""
+    datasets = [target, *sources]
+    observations = np.concatenate([d.observations for d in datasets])
+    mean = observations.mean(axis=0)
+    std = observations.std(axis=0) + OBS_STD_EPS
+    rewards = np.concatenate([d.rewards for d in datasets])
+    if normalize_rewards:
+        rewards = rewards * locomotion_reward_scale(np.concatenate([d.episode_returns() for d in datasets]))
+    arrays = {
+        "observations": (observations - mean) / std,
+        "actions": np.concatenate([d.actions for d in datasets]),
+        "rewards": rewards,
+        "next_observations": (np.concatenate([d.next_observations_or_derived() for d in datasets]) - mean) / std,
+        "terminals": np.concatenate([d.terminals for d in datasets]),
+    }
+    arrays = {k: v.astype(np.float32) for k, v in arrays.items()}
+    return OfflineData(arrays, mean.astype(np.float32), std.astype(np.float32), len(target))
+
+
+def s4rl_augment(batch: dict, key, std: float) -> dict:
+    """S4RL's Gaussian-noise augmentation: independent N(0, std^2) noise on s and s'."""
+    obs_key, next_key = jax.random.split(key)
+    return {**batch,
+            "observations": batch["observations"] + std * jax.random.normal(obs_key, batch["observations"].shape),
+            "next_observations": batch["next_observations"]
+            + std * jax.random.normal(next_key, batch["next_observations"].shape)}
+
+
+# --------------------------------------------------------------------------------------- training
+_STATIC_INIT = ("config", "obs_dim", "action_dim", "steps")
+
+
+@partial(jax.jit, static_argnames=_STATIC_INIT)
+def init_state(config: Learner, rng, obs_dim: int, action_dim: int, steps: int):
+    """A fresh state; ``steps`` is the run's length (IQL's actor learning-rate schedule)."""
+    return _ALGORITHMS[type(config)].init(rng, obs_dim, action_dim, config, steps)
+
+
+@partial(jax.jit, static_argnames=_STATIC_INIT)
+def init_seeds(config: Learner, keys, obs_dim: int, action_dim: int, steps: int):
+    """States of every seed (one key each), stacked on a leading axis."""
+    return jax.vmap(lambda key: init_state(config, key, obs_dim, action_dim, steps))(keys)
+
+
+@partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
+def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0):
+    """``steps`` updates of one seed on batches drawn from ``data``: (state, key, per-step infos)."""
+    update = _ALGORITHMS[type(config)].update
+    size = data["observations"].shape[0]
+
+    def step(carry, _):
+        state, key = carry
+        key, batch_key, noise_key = jax.random.split(key, 3)
+        idx = jax.random.randint(batch_key, (config.batch_size,), 0, size)
+        batch = {k: v[idx] for k, v in data.items()}
+        if s4rl_noise > 0:
+            batch = s4rl_augment(batch, noise_key, s4rl_noise)
+        state, info = update(state, batch, config)
+        return (state, key), info
+
+    (state, key), infos = jax.lax.scan(step, (state, key), None, length=steps)
+    return state, key, infos
+
+
+@partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
+def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0):
+    """:func:`train_steps` vmapped over stacked seeds; ``data["rewards"]`` is ``[seeds, N]``."""
+    def one(state, key, rewards):
+        return train_steps(config, state, key, {**data, "rewards": rewards}, steps, s4rl_noise)
+
+    return jax.vmap(one)(states, keys, data["rewards"])
+
+
+@partial(jax.jit, static_argnames="config")
+def _greedy(config: Learner, actor, obs, obs_mean, obs_std):
+    return jnp.clip(_ALGORITHMS[type(config)].act(actor, (obs - obs_mean) / obs_std), -1.0, 1.0)
+
+
+def seed_policy(config: Learner, actor, obs_mean: np.ndarray, obs_std: np.ndarray) -> PolicyFn:
+    """Evaluation policy of one seed's actor: standardise, act (greedy), clip to [-1, 1]."""
+    return lambda obs: np.asarray(_greedy(config, actor, jnp.asarray(obs, jnp.float32), obs_mean, obs_std))
+
+
+# ----------------------------------------------------------------------------------------- driver
+def _segment_ends(steps: int, eval_every: int, chunk: int = 1000) -> list[int]:
+    ends = set(range(chunk, steps, chunk)) | set(range(eval_every, steps, eval_every)) | {steps}
+    return sorted(ends)
+
+
+def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain, steps: int, seeds: Sequence[int],
+                  eval_every: int, eval_episodes: int, s4rl_noise: float, config: AlgoConfig) -> None:
+    for name, value in (("steps", steps), ("eval_every", eval_every), ("eval_episodes", eval_episodes)):
+        if value <= 0:
+            raise InputError(f"{name} must be positive, got {value}")
+    if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
+        raise InputError(f"seeds must be distinct non-negative integers, got {list(seeds)}")
+    if not s4rl_noise >= 0:
+        raise InputError(f"the S4RL noise std must be >= 0, got {s4rl_noise}")
+    if isinstance(config, DARAConfig) and not sources:
+        raise InputError("DARA corrects source rewards: give at least one source dataset")
+    env = make(domain)
+    dims = (env.observation_space.shape[0], env.action_space.shape[0])
+    env.close()
+    for i, data in enumerate([target, *sources]):
+        if (data.observation_dim, data.action_dim) != dims:
+            name = "target" if i == 0 else f"source {i - 1}"
+            raise InputError(f"the {name} dataset has observation/action dims {data.observation_dim}/"
+                             f"{data.action_dim}; {domain.name} has {dims[0]}/{dims[1]}")
+
+
+def train_offline(
+    algo: str | AlgoConfig,
+    target: Dataset,
+    sources: Sequence[Dataset],
+    domain: Domain,
+    steps: int,
+    seeds: Sequence[int],
+    eval_every: int = 10_000,
+    eval_episodes: int = 10,
+    out_dir: str | Path | None = None,
+    progress: bool = True,
+    s4rl_noise: float = 0.0,
+) -> list[dict]:
+    """Train ``algo`` on target + sources for every seed at once; evaluate in ``domain``.
+
+    Evaluates every ``eval_every`` steps and at the end. Returns one result per seed (in ``seeds``
+    order): ``final_score`` and ``best_score`` (normalised), the evaluations, and training speed.
+    With ``out_dir`` each seed's result is written to ``out_dir/seed_N.json`` when it finishes, and
+    a seed whose file exists is loaded instead of trained (a file of another run is an InputError).
+    """
+    config = default_config(algo) if isinstance(algo, str) else algo
+    learner = learner_config(config)
+    seeds = [int(s) for s in seeds]
+    _check_inputs(target, sources, domain, steps, seeds, eval_every, eval_episodes, s4rl_noise, config)
+    run = json.loads(json.dumps({
+        "algo": algorithm_name(config), "config": dataclasses.asdict(config), "domain": domain.name, "steps": steps,
+        "transitions": len(target) + sum(len(s) for s in sources), "s4rl_noise": s4rl_noise,
+        "eval_every": eval_every, "eval_episodes": eval_episodes,
+    }))
+    done = {seed: _load_result(Path(out_dir), seed, run) for seed in seeds} if out_dir is not None else {}
+    todo = [seed for seed in seeds if done.get(seed) is None]
+    if todo:
+        for result in _train_group(config, learner, target, sources, domain, todo, run, progress):
+            done[result["seed"]] = result
+            if out_dir is not None:
+                with atomic_path(Path(out_dir) / f"seed_{result['seed']}.json") as tmp:
+                    tmp.write_text(json.dumps(result, indent=2))
+    return [done[seed] for seed in seeds]
+
+
+def _load_result(out_dir: Path, seed: int, run: dict) -> dict | None:
+    path = out_dir / f"seed_{seed}.json"
+    if not path.exists():
+        return None
+    try:
+        result = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise InputError(f"{path}: unreadable result ({err}); remove it to retrain seed {seed}") from None
+    if {k: result.get(k) for k in run} != run:
+        raise InputError(f"{path} holds a result of another run (algorithm, config, data or domain differ); "
+                         f"use another output folder")
+    return result
+
+
+def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources: Sequence[Dataset], domain: Domain,
+                 seeds: list[int], run: dict, progress: bool) -> list[dict]:
+    steps, eval_every, s4rl_noise = run["steps"], run["eval_every"], run["s4rl_noise"]
+    data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False))
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 3))(jnp.asarray(seeds))
+    init_keys, train_keys, dara_keys = keys[:, 0], keys[:, 1], keys[:, 2]
+    rewards = np.broadcast_to(data.arrays["rewards"], (len(seeds), len(data.arrays["rewards"])))
+    if isinstance(config, DARAConfig):
+        n = data.target_size
+        deltas, _ = source_reward_deltas(dara_keys, {k: data.arrays[k][:n] for k in CLASSIFIER_INPUTS},
+                                         {k: data.arrays[k][n:] for k in CLASSIFIER_INPUTS}, config)
+        rewards = np.concatenate([rewards[:, :n], corrected_rewards(rewards[:, n:], deltas, config)], axis=1)
+    device_data = {**{k: jnp.asarray(v) for k, v in data.arrays.items()}, "rewards": jnp.asarray(rewards)}
+    states = init_seeds(learner, init_keys, target.observation_dim, target.action_dim, steps)
+
+    evals: list[list[dict]] = [[] for _ in seeds]
+    train_seconds, position = 0.0, 0
+    bar = tqdm(total=steps, desc=f"{run['algo']} x{len(seeds)} seeds", unit="step", disable=not progress,
+               smoothing=0.1)
+    for end in _segment_ends(steps, eval_every):
+        started = time.perf_counter()
+        states, train_keys, _ = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise)
+        jax.block_until_ready(states)
+        train_seconds += time.perf_counter() - started
+        bar.update(end - position)
+        position = end
+        if end % eval_every == 0 or end == steps:
+            for i, seed in enumerate(seeds):
+                actor = jax.tree.map(lambda x: jnp.asarray(np.asarray(x)[i]), states.actor)
+                result = evaluate(seed_policy(learner, actor, data.obs_mean, data.obs_std), domain,
+                                  run["eval_episodes"], seed=seed * 1_000_003 + end)
+                evals[i].append({"step": end, "normalized_score": result["normalized_score"],
+                                 "return_mean": result["return_mean"]})
+            bar.set_postfix(score=f"{np.mean([e[-1]['normalized_score'] for e in evals]):.1f}")
+    bar.close()
+    rate = steps * len(seeds) / train_seconds  # updates per second over all seeds, compilation included
+    return [{**run, "seed": seed, "final_score": history[-1]["normalized_score"],
+             "best_score": max(e["normalized_score"] for e in history), "evals": history,
+             "updates_per_second": rate} for seed, history in zip(seeds, evals)]
