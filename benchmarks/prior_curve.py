@@ -15,19 +15,12 @@ import csv
 import json
 from pathlib import Path
 
-import numpy as np
-
 from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import PriorConfig, load_prior, preset, train_prior
+from xted.diffusion.training import PriorConfig, load_prior, preset, split_heldout, train_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
-
-
-def split_heldout(data, episodes: int, seed: int = 0):
-    order = np.random.default_rng(seed).permutation(data.num_episodes)
-    return data.select_episodes(np.sort(order[episodes:])), data.select_episodes(np.sort(order[:episodes]))
 
 
 def mae(domain, data) -> float:

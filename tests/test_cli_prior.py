@@ -78,3 +78,13 @@ def test_exported_prior_equals_the_checkpoint(files, tmp_path):
     assert a.step == b.step
     for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(b.params)):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
+def test_heldout_episodes_are_left_out_of_training(files):
+    from xted.diffusion.training import split_heldout
+
+    target = load(files / "target.npz")
+    train, heldout = split_heldout(target, 1, seed=0)
+    assert train.num_episodes + heldout.num_episodes == target.num_episodes
+    assert len(train) + len(heldout) == len(target)
+    assert split_heldout(target, 0) == (target, None)

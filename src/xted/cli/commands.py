@@ -21,13 +21,15 @@ def train(
     steps: int = typer.Option(20_000, "--steps", help="Total training steps."),
     seed: int = typer.Option(0, "--seed"),
     checkpoint_every: int = typer.Option(1000, "--checkpoint-every"),
+    heldout_episodes: int = typer.Option(0, "--heldout-episodes",
+                                         help="Leave this many random target episodes out (to measure the floor)."),
     overrides: List[str] = typer.Option([], "--set", help="Override a config field: FIELD=VALUE (repeatable)."),
 ) -> None:
     """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints)."""
     from xted.data import load
-    from xted.diffusion.training import PriorConfig, preset as make_preset, train_prior
+    from xted.diffusion.training import PriorConfig, preset as make_preset, split_heldout, train_prior
 
-    data = load(target)
+    data, _ = split_heldout(load(target), heldout_episodes)
     config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed,
                          **parse_overrides(PriorConfig, overrides))
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
@@ -64,6 +66,7 @@ def edit(
 
 
 DEMO_PRIOR = "halfcheetah-medium-replay-cpu"
+DEMO_HELDOUT_EPISODES = 2  # the shipped prior was trained with these episodes held out
 
 
 @app.command()
@@ -79,7 +82,7 @@ def demo(
     source are all replayed in the target simulator (the true one-step dynamics error)."""
     from xted.data import formats, load, shipped
     from xted.diffusion.editor import EditConfig, edit_dataset
-    from xted.diffusion.training import PriorConfig, load_prior, train_prior
+    from xted.diffusion.training import PriorConfig, load_prior, split_heldout, train_prior
     from xted.envs import parse_domain
     from xted.envs.dynamics import dynamics_error
 
@@ -89,7 +92,7 @@ def demo(
         shipped_prior = load_prior(prior_folder)
         config = PriorConfig.from_dict({**shipped_prior.config.to_dict(), "seed": seed})
         prior_folder = out / "prior"
-        train_prior(target, prior_folder, config, steps or shipped_prior.step)
+        train_prior(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], prior_folder, config, steps or shipped_prior.step)
     prior = load_prior(prior_folder)
     edited, report = edit_dataset(prior, source, EditConfig(seed=seed))
     formats.save(edited, out / "halfcheetah-gravity-edited.npz")

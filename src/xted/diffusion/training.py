@@ -18,7 +18,6 @@ import dataclasses
 import functools
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -131,10 +130,11 @@ def _paper(state_dim: int, action_dim: int) -> PriorConfig:
 
 
 def _cpu(state_dim: int, action_dim: int) -> PriorConfig:
-    """Provisional small, fast configuration for a 2-core CPU (to be tuned by measurement)."""
+    """Small, fast configuration for a 2-core CPU: stream widths 4x the element's dim (at least 32),
+    one block per stream, batch 128 (about 3.4 GFLOP per step; BENCHMARKS.md has the curve that chose it)."""
     return PriorConfig(
-        state_dim=state_dim, action_dim=action_dim, width_override=128, state_blocks=1, action_blocks=1,
-        reward_blocks=1, cond_dim=64, horizon=20, num_timesteps=200, batch_size=256, learning_rate=1e-3,
+        state_dim=state_dim, action_dim=action_dim, width_multiplier=4, min_width=32, state_blocks=1,
+        action_blocks=1, reward_blocks=1, cond_dim=64, horizon=20, num_timesteps=200, batch_size=128, learning_rate=1e-3,
         warmup_steps=500, decay_steps=50_000, return_condition=True,
     )
 
@@ -300,6 +300,17 @@ def _window_sampler(dataset: Dataset, normalizer: Normalizer, config: PriorConfi
     )
     info = {"return_range": [low, high], "windows": int(len(index)), "skipped_episodes": int(skipped)}
     return sampler, info
+
+
+def split_heldout(dataset: Dataset, episodes: int, seed: int = 0) -> tuple[Dataset, Dataset | None]:
+    """(training part, ``episodes`` held-out episodes chosen at random, or None for 0): the held-out
+    episodes measure the prior's floor, the same edit applied to target data it never saw."""
+    if not 0 <= episodes < dataset.num_episodes:
+        raise InputError(f"cannot hold out {episodes} of {dataset.num_episodes} episodes")
+    if episodes == 0:
+        return dataset, None
+    order = np.random.default_rng(seed).permutation(dataset.num_episodes)
+    return dataset.select_episodes(np.sort(order[episodes:])), dataset.select_episodes(np.sort(order[:episodes]))
 
 
 def normalize_returns(raw: Any, return_range: tuple[float, float]) -> Any:
@@ -474,13 +485,18 @@ class Prior:
 EXPORTED_PARAMS = "params.msgpack"
 
 
-def export_prior(prior_dir: str | Path, dest: str | Path) -> Path:
-    """Write an inference-only copy of a prior (``prior.json`` + EMA parameters): small enough to ship."""
+def export_prior(prior_dir: str | Path, dest: str | Path, provenance: dict[str, Any] | None = None) -> Path:
+    """Write an inference-only copy of a prior (``prior.json`` + EMA parameters): small enough to ship.
+
+    ``provenance`` (for example the command that trained it) is recorded in the copy's ``prior.json``."""
     prior = load_prior(prior_dir)
     dest = Path(dest)
+    meta = _read_json(Path(prior_dir) / "prior.json")
+    if provenance:
+        meta["provenance"] = provenance
     with atomic_path(dest) as tmp:
         tmp.mkdir()
-        shutil.copyfile(Path(prior_dir) / "prior.json", tmp / "prior.json")
+        (tmp / "prior.json").write_text(json.dumps(meta, indent=1))
         payload = {"params": jax.device_get(prior.params), "step": prior.step}
         (tmp / EXPORTED_PARAMS).write_bytes(flax.serialization.msgpack_serialize(payload))
     return dest
