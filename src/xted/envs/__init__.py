@@ -8,7 +8,7 @@ from xted.envs.domains import (
     normalized_score,
     parse_domain,
 )
-from xted.envs.make import make, make_vector, simulator
+from xted.envs.make import make, simulator
 
 __all__ = [
     "ENV_IDS",
@@ -16,7 +16,6 @@ __all__ = [
     "REFERENCE_RETURNS",
     "Domain",
     "make",
-    "make_vector",
     "normalized_score",
     "parse_domain",
     "simulator",

@@ -61,14 +61,6 @@ def make(env: str | Domain, gap: str | None = None, **kwargs) -> gym.Env:
     return instance
 
 
-def make_vector(domain: Domain, num_envs: int, seed: int | None = None) -> gym.vector.VectorEnv:
-    """``num_envs`` copies stepped in this process (cheap MuJoCo steps need no subprocesses)."""
-    vec = gym.vector.SyncVectorEnv([lambda: make(domain) for _ in range(num_envs)])
-    if seed is not None:
-        vec.reset(seed=seed)
-    return vec
-
-
 def simulator(domain: Domain) -> tuple[mujoco.MjModel, int]:
     """The domain's compiled ``MjModel`` and its frame skip (simulator steps per env step)."""
     instance = make(domain)

@@ -7,7 +7,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from xted.envs import Domain, make, normalized_score
+from xted.envs import Domain, make
 
 # batch of observations, numpy Generator -> batch of actions
 SamplingPolicy = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -72,6 +72,3 @@ def collect(
         flat["timeouts"][-1] = True
     return flat, returns
 
-
-def score_of(domain: Domain, returns: np.ndarray) -> float:
-    return float(np.mean(normalized_score(domain.env, returns)))

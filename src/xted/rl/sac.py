@@ -105,7 +105,3 @@ def sample_action(actor: TrainState, obs, rng):
     mean, log_std = actor.apply_fn({"params": actor.params}, obs)
     return sample_tanh_gaussian(rng, mean, log_std)[0]
 
-
-@jax.jit
-def greedy_action(actor: TrainState, obs):
-    return jnp.tanh(actor.apply_fn({"params": actor.params}, obs)[0])

@@ -23,7 +23,7 @@ from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import GaussianActor, save_actor
-from xted.rl.sac import SACConfig, greedy_action, init_sac, sac_update, sample_action
+from xted.rl.sac import SACConfig, init_sac, sac_update, sample_action
 
 BUFFER_FIELDS = ("observations", "actions", "rewards", "next_observations", "terminals", "timeouts")
 
@@ -96,8 +96,7 @@ def train_sac(domain: Domain, run_dir: str | Path, config: SACRunConfig = SACRun
         saved = flax.serialization.msgpack_restore((run_dir / "state.msgpack").read_bytes())
         state = flax.serialization.from_state_dict(state, saved["state"])
         step, episode = int(saved["step"]), int(saved["episode"])
-        if "numpy_rng" in saved:  # runs checkpointed before the generator state was stored
-            explore_rng.bit_generator.state = json.loads(saved["numpy_rng"])
+        explore_rng.bit_generator.state = json.loads(saved["numpy_rng"])
         with np.load(run_dir / "buffer.npz") as stored:
             for key in BUFFER_FIELDS:
                 buffer[key][:step] = stored[key][:step]
