@@ -44,7 +44,11 @@ class DynamicsError:
 
 def predict_next_observations(domain: Domain, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
     """The simulator's next observation for every (s, a), unclipped."""
-    model, frame_skip = simulator(domain)
+    return _replay(*simulator(domain), domain, observations, actions)
+
+
+def _replay(model: mujoco.MjModel, frame_skip: int, domain: Domain, observations: np.ndarray,
+            actions: np.ndarray) -> np.ndarray:
     data = mujoco.MjData(model)
     nq, nv = model.nq, model.nv
     if observations.shape[1] != nq - 1 + nv:
@@ -73,13 +77,14 @@ def dynamics_error(
     """Replay (s, a, s') in ``domain`` and compare s' with the simulator's next state."""
     observations = np.asarray(observations, dtype=np.float64)
     next_observations = np.asarray(next_observations, dtype=np.float64)
+    model, frame_skip = simulator(domain)
     clip = observation_velocity_clip(domain)
     keep = np.ones(len(observations), dtype=bool)
     if np.isfinite(clip):
-        nq = simulator(domain)[0].nq
+        nq = model.nq
         velocities = np.concatenate([observations[:, nq - 1 :], next_observations[:, nq - 1 :]], axis=1)
         keep = np.all(np.abs(velocities) < clip - 1e-6, axis=1)
-    predicted = predict_next_observations(domain, observations[keep], np.asarray(actions)[keep])
+    predicted = _replay(model, frame_skip, domain, observations[keep], np.asarray(actions)[keep])
     diff = predicted - next_observations[keep]
     mae_t = np.mean(np.abs(diff), axis=1)
     mse_t = np.mean(diff**2, axis=1)
