@@ -38,3 +38,22 @@ def test_dynamics_in_the_source_domain_flips(target_and_source, capsys):
 def test_bad_domain_exits_2(target_and_source, args, capsys):
     assert main(["analyze", "dynamics", *args, target_and_source[0]]) == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_proxy_json_measures_each_dataset(target_and_source, capsys):
+    target, source = target_and_source
+    assert main(["analyze", "proxy", "--target", target, "--steps", "300", "--json", target, source]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [row["path"] for row in report["datasets"]] == [target, source]
+    fitted, other = report["datasets"]
+    assert fitted["n"] == 300 and fitted["mae"] < other["mae"]
+
+
+def test_content_json_and_mismatch_exit_2(target_and_source, capsys):
+    target, source = target_and_source
+    assert main(["analyze", "content", "--env", "halfcheetah", "--json", target, target]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["matched"]["low_pass_difference"] == 0.0
+    assert report["matched"]["forward_velocity_correlation"] == pytest.approx(1.0)
+    assert main(["analyze", "content", target, "halfcheetah-medium"]) == 2
+    assert "must have the source's episodes" in capsys.readouterr().err

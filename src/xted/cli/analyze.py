@@ -9,7 +9,7 @@ import typer
 
 from xted.envs import parse_domain
 
-app = typer.Typer(help="Measure datasets: simulator dynamics error.", no_args_is_help=True)
+app = typer.Typer(help="Measure datasets: simulator dynamics error, learned proxy, task content.", no_args_is_help=True)
 
 
 @app.command("dynamics")
@@ -38,3 +38,52 @@ def dynamics(
         q = row["mae_quantiles"]
         print(f"{row['path'][-40:]:40s} {row['n']:7d} {row['excluded_clipped']:8d} {row['mae']:9.4f} "
               f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f}")
+
+
+@app.command("proxy")
+def proxy(
+    datasets: List[str] = typer.Argument(..., help="Datasets to measure (paths or shipped names)."),
+    target: str = typer.Option(..., "--target", help="Target data the proxy is fitted to."),
+    steps: int = typer.Option(20_000, "--steps", help="Proxy training steps."),
+    seed: int = typer.Option(0, "--seed"),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """The paper's measure, no simulator needed: fit an MLP dynamics model to the target data and
+    report |model(s, a) - s'| for each dataset."""
+    from xted.analysis import ProxyConfig, fit_proxy
+    from xted.data import load
+
+    measured = {name: load(name) for name in datasets}
+    fitted = fit_proxy(load(target), ProxyConfig(steps=steps, seed=seed), progress=not as_json)
+    results = [{"path": name, **fitted.error(data).summary()} for name, data in measured.items()]
+    if as_json:
+        print(json.dumps({"target": target, "steps": steps, "seed": seed, "datasets": results}))
+        return
+    print(f"learned dynamics proxy fitted to {target} ({steps} steps, seed {seed})")
+    print(f"{'dataset':40s} {'n':>7s} {'MAE':>9s} {'MSE':>9s} {'MAE p50':>9s} {'MAE p90':>9s}")
+    for row in results:
+        q = row["mae_quantiles"]
+        print(f"{row['path'][-40:]:40s} {row['n']:7d} {row['mae']:9.4f} {row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f}")
+
+
+@app.command("content")
+def content(
+    source: str = typer.Argument(..., help="The source dataset."),
+    edited: str = typer.Argument(..., help="Its edit (same episodes)."),
+    env: Optional[str] = typer.Option(None, "--env", help="halfcheetah or walker2d: adds the forward-velocity correlation."),
+    cutoff: float = typer.Option(0.2, "--cutoff", help="Low-frequency band, as a fraction of the Nyquist frequency."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """How much task content an edit kept: low-frequency spectrum difference and forward-velocity
+    correlation per episode, against mismatched episode pairs as the chance level."""
+    from xted.analysis import content_similarity
+    from xted.data import load
+    from xted.envs.make import forward_velocity_index
+
+    forward = forward_velocity_index(parse_domain(env)) if env else None
+    scores = content_similarity(load(source), load(edited), forward, cutoff)
+    if as_json:
+        print(json.dumps({"source": source, "edited": edited, "cutoff": cutoff, **scores}))
+        return
+    for pairing, values in scores.items():
+        print(f"{pairing:10s} " + "  ".join(f"{name} {value:.3f}" for name, value in values.items()))

@@ -30,6 +30,21 @@ class DynamicsError:
     mae_per_transition: np.ndarray
     mse_per_transition: np.ndarray
 
+    @classmethod
+    def from_differences(cls, diff: np.ndarray, excluded_clipped: int = 0) -> DynamicsError:
+        """From predicted minus recorded next states ``[N, obs_dim]``."""
+        mae_t = np.mean(np.abs(diff), axis=1)
+        mse_t = np.mean(diff**2, axis=1)
+        n = len(diff)
+        return cls(
+            n=n,
+            excluded_clipped=excluded_clipped,
+            mae=float(mae_t.mean()) if n else float("nan"),
+            mse=float(mse_t.mean()) if n else float("nan"),
+            mae_per_transition=mae_t,
+            mse_per_transition=mse_t,
+        )
+
     def summary(self) -> dict:
         quantiles = np.quantile(self.mae_per_transition, [0.1, 0.25, 0.5, 0.75, 0.9]) if self.n else [np.nan] * 5
         return {
@@ -85,15 +100,4 @@ def dynamics_error(
         velocities = np.concatenate([observations[:, nq - 1 :], next_observations[:, nq - 1 :]], axis=1)
         keep = np.all(np.abs(velocities) < clip - 1e-6, axis=1)
     predicted = _replay(model, frame_skip, domain, observations[keep], np.asarray(actions)[keep])
-    diff = predicted - next_observations[keep]
-    mae_t = np.mean(np.abs(diff), axis=1)
-    mse_t = np.mean(diff**2, axis=1)
-    n = int(keep.sum())
-    return DynamicsError(
-        n=n,
-        excluded_clipped=int((~keep).sum()),
-        mae=float(mae_t.mean()) if n else float("nan"),
-        mse=float(mse_t.mean()) if n else float("nan"),
-        mae_per_transition=mae_t,
-        mse_per_transition=mse_t,
-    )
+    return DynamicsError.from_differences(predicted - next_observations[keep], excluded_clipped=int((~keep).sum()))

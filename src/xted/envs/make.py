@@ -73,3 +73,8 @@ def simulator(domain: Domain) -> tuple[mujoco.MjModel, int]:
 def observation_velocity_clip(domain: Domain) -> float:
     """Walker2d-v5 clips velocities in its observations to +-10; HalfCheetah does not clip."""
     return 10.0 if domain.env == "walker2d" else np.inf
+
+
+def forward_velocity_index(domain: Domain) -> int:
+    """Index of the root's forward (x) velocity in observations ``[qpos[1:], qvel]``: ``nq - 1``."""
+    return int(simulator(domain)[0].nq - 1)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Callable, Sequence
 
 import flax.linen as nn
 import jax
@@ -15,13 +15,14 @@ class MLP(nn.Module):
     hidden: Sequence[int]
     out: int
     activate_final: bool = False
+    activation: Callable[[jax.Array], jax.Array] = nn.relu
 
     @nn.compact
     def __call__(self, x):
         for width in self.hidden:
-            x = nn.relu(nn.Dense(width)(x))
+            x = self.activation(nn.Dense(width)(x))
         x = nn.Dense(self.out)(x)
-        return nn.relu(x) if self.activate_final else x
+        return self.activation(x) if self.activate_final else x
 
 
 class TanhGaussianPolicy(nn.Module):

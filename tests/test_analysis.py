@@ -1,0 +1,92 @@
+import dataclasses
+
+import numpy as np
+import pytest
+
+from xted.analysis import ProxyConfig, content_similarity, fit_proxy
+from xted.data import Dataset
+from xted.errors import InputError
+
+
+def linear_system(episodes: int, length: int, seed: int) -> Dataset:
+    """s' = s + 0.1 (A s + B a): a smooth system an MLP can learn from a few hundred steps."""
+    rng = np.random.default_rng(seed)
+    a_matrix = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.5], [0.2, 0.0, -0.3]])
+    b_matrix = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    observations, actions, nexts = [], [], []
+    for _ in range(episodes):
+        s = rng.normal(size=3)
+        for _ in range(length):
+            a = rng.uniform(-1, 1, size=2)
+            s_next = s + 0.1 * (a_matrix @ s + b_matrix @ a)
+            observations.append(s), actions.append(a), nexts.append(s_next)
+            s = s_next
+    n = episodes * length
+    timeouts = np.zeros(n, bool)
+    timeouts[length - 1 :: length] = True
+    return Dataset(np.array(observations, np.float32), np.array(actions, np.float32), np.zeros(n, np.float32),
+                   np.zeros(n, bool), timeouts, np.array(nexts, np.float32))
+
+
+def naive_error(data: Dataset) -> float:
+    return float(np.abs(data.next_observations - data.observations).mean())
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    return fit_proxy(linear_system(20, 50, seed=0), ProxyConfig(hidden=(64, 64), steps=1500, seed=3), progress=False)
+
+
+def test_proxy_learns_held_out_dynamics(fitted):
+    heldout = linear_system(4, 50, seed=1)
+    error = fitted.error(heldout)
+    assert error.n == len(heldout)
+    assert error.mae < 0.1 * naive_error(heldout)
+
+
+def test_proxy_flags_other_dynamics(fitted):
+    heldout = linear_system(4, 50, seed=1)
+    shifted = dataclasses.replace(heldout, next_observations=heldout.next_observations + 0.05)
+    assert fitted.error(shifted).mae > fitted.error(heldout).mae + 0.03
+
+
+def test_proxy_is_deterministic_per_seed(fitted):
+    data = linear_system(20, 50, seed=0)
+    again = fit_proxy(data, ProxyConfig(hidden=(64, 64), steps=1500, seed=3), progress=False)
+    other = fit_proxy(data, ProxyConfig(hidden=(64, 64), steps=1500, seed=4), progress=False)
+    probe = linear_system(1, 20, seed=2)
+    predict = lambda proxy: proxy.predict(probe.observations, probe.actions)  # noqa: E731
+    np.testing.assert_array_equal(predict(fitted), predict(again))
+    assert not np.array_equal(predict(fitted), predict(other))
+
+
+def test_proxy_refuses_other_dims(fitted):
+    with pytest.raises(InputError, match="3-d observations and 2-d actions"):
+        fitted.predict(np.zeros((2, 4)), np.zeros((2, 2)))
+
+
+def test_content_of_an_unchanged_edit_is_perfect(make_dataset):
+    data = make_dataset(lengths=(40, 40, 40), obs_dim=4)
+    scores = content_similarity(data, data, forward_index=1)
+    assert scores["matched"] == {"low_freq_magnitude_difference": 0.0, "low_pass_difference": 0.0,
+                                 "forward_velocity_correlation": pytest.approx(1.0)}
+    assert scores["mismatched"]["low_pass_difference"] > 0.5
+
+
+def test_content_separates_small_edits_from_replaced_episodes(make_dataset):
+    source = make_dataset(lengths=(64, 64, 64, 64), obs_dim=4, seed=0)
+    smooth = np.cumsum(source.observations, axis=0)  # slow, content-bearing signals
+    source = dataclasses.replace(source, observations=smooth.astype(np.float32))
+    noise = np.random.default_rng(1).normal(scale=0.05 * smooth.std(0), size=smooth.shape)
+    edited = dataclasses.replace(source, observations=(smooth + noise).astype(np.float32))
+    scores = content_similarity(source, edited, forward_index=0)
+    for measure in ("low_freq_magnitude_difference", "low_pass_difference"):
+        assert scores["matched"][measure] < 0.5 * scores["mismatched"][measure]
+    assert scores["matched"]["forward_velocity_correlation"] > 0.9
+
+
+def test_content_refuses_different_episodes(make_dataset):
+    with pytest.raises(InputError, match="must have the source's episodes"):
+        content_similarity(make_dataset(lengths=(4, 6)), make_dataset(lengths=(5, 5)))
+    with pytest.raises(InputError, match="forward_index"):
+        content_similarity(make_dataset(), make_dataset(), forward_index=7)
