@@ -160,6 +160,27 @@ def test_cross_wiring(tiny_model):
     assert dataclasses.replace(TINY.denoiser, use_reward=False).cross_wiring == CROSS_WIRING[:2]
 
 
+@pytest.mark.parametrize("architecture", ["causal", "feature_concat", "temporal_concat"])
+def test_ablation_architectures(architecture):
+    cfg = dataclasses.replace(TINY.denoiser, architecture=architecture)
+    model = Denoiser(cfg)
+    s, a, r, t, returns = _inputs(cfg)
+    shapes = jax.eval_shape(model.init, jax.random.key(0), s, a, r, t, returns)
+    apply = jax.jit(lambda s, a, r: model.apply(random_params(shapes), s, a, r, t, returns))
+    base = apply(s, a, r)
+    assert [e.shape for e in base] == [s.shape, a.shape, r.shape]
+    late = apply(s.at[:, 2:].add(1.0), a.at[:, 2:].add(1.0), r.at[:, 2:].add(1.0))
+    if architecture == "causal":  # steps 0-1 cannot see steps 2+, in any stream
+        for before, after in zip(base, late):
+            np.testing.assert_array_equal(before[:, :2], after[:, :2])
+            assert not np.allclose(before[:, 2:], after[:, 2:])
+    else:  # one sequence: every element sees every step, rewards included
+        for before, after in zip(base, late):
+            assert not np.allclose(before[:, :2], after[:, :2])
+    with pytest.raises(InputError, match="architecture must be one of"):
+        dataclasses.replace(TINY, architecture="unet")
+
+
 # ----------------------------------------------------------------------------------- training
 def test_presets():
     paper = preset("paper", 17, 6)

@@ -14,6 +14,7 @@ zero, so each block starts as the identity and the untrained model predicts zero
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -37,10 +38,19 @@ CROSS_WIRING: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 
 
+# The paper's architecture ablations (its Tables 6-7), all in this module's one code path:
+# "xted" the model above; "causal" the same with every attention causal in time (CM);
+# "feature_concat" one token per step holding [s, a, r] (FC); "temporal_concat" the 2H or 3H
+# element tokens s_0, a_0, r_0, s_1, ... in one sequence at the state stream's width (TC).
+# FC and TC run ``state_blocks + 1`` self-attention blocks: the xTED state stream's depth.
+ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat")
+
+
 @dataclass(frozen=True)
 class DenoiserConfig:
     """Architecture. Stream width = ``width_override`` if set, else
-    ``max(min_width, round(width_multiplier * element_dim))``."""
+    ``max(min_width, round(width_multiplier * element_dim))`` ("joint", the FC token, has the
+    summed dims of the streams)."""
 
     state_dim: int
     action_dim: int
@@ -57,6 +67,7 @@ class DenoiserConfig:
     return_condition: bool = False
     horizon: int = 20
     dtype: str = "float32"
+    architecture: str = "xted"
 
     @property
     def streams(self) -> tuple[str, ...]:
@@ -69,6 +80,8 @@ class DenoiserConfig:
         return tuple((u, kv) for u, kv in CROSS_WIRING if u in present and present.issuperset(kv))
 
     def element_dim(self, stream: str) -> int:
+        if stream == "joint":
+            return sum(map(self.element_dim, self.streams))
         return {"state": self.state_dim, "action": self.action_dim, "reward": 1}[stream]
 
     def width(self, stream: str) -> int:
@@ -128,13 +141,13 @@ class SelfAttentionBlock(nn.Module):
     dtype: jnp.dtype = jnp.float32
 
     @nn.compact
-    def __call__(self, x: jnp.ndarray, e: jnp.ndarray) -> jnp.ndarray:
+    def __call__(self, x: jnp.ndarray, e: jnp.ndarray, mask: jnp.ndarray | None = None) -> jnp.ndarray:
         shift, scale, gate, shift2, scale2, gate2 = Modulation(self.width, 6, self.dtype)(e)
         h = _modulate(_layer_norm(x, self.dtype), shift, scale)
         attention = nn.MultiHeadDotProductAttention(
             self.heads, qkv_features=self.width, out_features=self.width, dtype=self.dtype
         )
-        x = x + gate[:, None] * attention(h)
+        x = x + gate[:, None] * attention(h, mask=mask)
         h = _modulate(_layer_norm(x, self.dtype), shift2, scale2)
         return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype)(h)
 
@@ -153,7 +166,8 @@ class CrossAttentionBlock(nn.Module):
     dtype: jnp.dtype = jnp.float32
 
     @nn.compact
-    def __call__(self, x: jnp.ndarray, others: Sequence[jnp.ndarray], e: jnp.ndarray) -> jnp.ndarray:
+    def __call__(self, x: jnp.ndarray, others: Sequence[jnp.ndarray], e: jnp.ndarray,
+                 mask: jnp.ndarray | None = None) -> jnp.ndarray:
         shift, scale, gate, shift2, scale2, gate2 = Modulation(self.width, 6, self.dtype)(e)
         q = _modulate(_layer_norm(x, self.dtype), shift, scale)
         kv = []
@@ -165,7 +179,7 @@ class CrossAttentionBlock(nn.Module):
         attention = nn.MultiHeadDotProductAttention(
             self.heads, qkv_features=self.width, out_features=self.width, dtype=self.dtype
         )
-        x = x + gate[:, None] * attention(q, kv)
+        x = x + gate[:, None] * attention(q, kv, mask=mask)
         h = _modulate(_layer_norm(x, self.dtype), shift2, scale2)
         return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype)(h)
 
@@ -256,24 +270,60 @@ class Denoiser(nn.Module):
         if (rewards is not None) != cfg.use_reward:
             expected = "given" if cfg.use_reward else "None"
             raise ValueError(f"rewards must be {expected} when use_reward={cfg.use_reward}")
-        inputs = {"state": states, "action": actions, "reward": rewards}
+        inputs = {s: x.astype(dtype) for s, x in zip(STREAMS, (states, actions, rewards)) if s in cfg.streams}
         e = ConditionEmbedding(cfg.cond_dim, cfg.return_condition, dtype, name="condition")(t, returns, drop_condition)
-
-        h = {}
-        for s in cfg.streams:
-            width = cfg.width(s)
-            x = Encoder(width, cfg.horizon, dtype, name=f"{s}_encoder")(inputs[s].astype(dtype))
-            for i in range(cfg.blocks(s)):
-                x = SelfAttentionBlock(width, cfg.heads(s), cfg.mlp_ratio, dtype, name=f"{s}_self_{i}")(x, e)
-            h[s] = x
-
-        crossed = dict(h)
-        for s, attended in cfg.cross_wiring:
-            block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, name=f"{s}_cross")
-            crossed[s] = block(h[s], [h[a] for a in attended], e)
-
-        eps = {
-            s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(crossed[s]).astype(jnp.float32)
-            for s in cfg.streams
-        }
+        build = {"xted": _streams, "causal": _streams, "feature_concat": _feature_concat,
+                 "temporal_concat": _temporal_concat}[cfg.architecture]
+        eps = {s: x.astype(jnp.float32) for s, x in build(cfg, inputs, e, dtype).items()}
         return eps["state"], eps["action"], eps.get("reward")
+
+
+def _causal_mask(query_times: jnp.ndarray, key_times: jnp.ndarray) -> jnp.ndarray:
+    """``[1, 1, Q, K]``: a query at time ``t`` sees keys at times ``<= t``."""
+    return (key_times[None, :] <= query_times[:, None])[None, None]
+
+
+def _self_blocks(cfg: DenoiserConfig, name: str, x: jnp.ndarray, e: jnp.ndarray, count: int,
+                 mask: jnp.ndarray | None, dtype: jnp.dtype) -> jnp.ndarray:
+    width = x.shape[-1]
+    for i in range(count):
+        x = SelfAttentionBlock(width, math.gcd(cfg.num_heads, width), cfg.mlp_ratio, dtype, name=f"{name}_self_{i}")(
+            x, e, mask
+        )
+    return x
+
+
+def _streams(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
+    """xTED (and its causal variant): per-stream self-attention, then the cross-attention wiring."""
+    times = jnp.arange(cfg.horizon)
+    causal = cfg.architecture == "causal"
+    h = {}
+    for s in cfg.streams:
+        x = Encoder(cfg.width(s), cfg.horizon, dtype, name=f"{s}_encoder")(inputs[s])
+        h[s] = _self_blocks(cfg, s, x, e, cfg.blocks(s), _causal_mask(times, times) if causal else None, dtype)
+    crossed = dict(h)
+    for s, attended in cfg.cross_wiring:
+        mask = _causal_mask(times, jnp.tile(times, len(attended))) if causal else None
+        block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, name=f"{s}_cross")
+        crossed[s] = block(h[s], [h[a] for a in attended], e, mask)
+    return {s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(crossed[s]) for s in cfg.streams}
+
+
+def _feature_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
+    """FC: one token per step, ``[s_t, a_t, r_t]``, one stream."""
+    joint = jnp.concatenate([inputs[s] for s in cfg.streams], axis=-1)
+    x = Encoder(cfg.width("joint"), cfg.horizon, dtype, name="joint_encoder")(joint)
+    x = _self_blocks(cfg, "joint", x, e, cfg.state_blocks + 1, None, dtype)
+    out = Decoder(cfg.width("joint"), cfg.element_dim("joint"), dtype, name="joint_decoder")(x)
+    splits = list(itertools.accumulate(cfg.element_dim(s) for s in cfg.streams))[:-1]
+    return dict(zip(cfg.streams, jnp.split(out, splits, axis=-1)))
+
+
+def _temporal_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
+    """TC: element tokens interleaved in time, ``s_0, a_0, r_0, s_1, ...``, one sequence."""
+    width, n = cfg.width("state"), len(cfg.streams)
+    tokens = jnp.stack([Encoder(width, cfg.horizon, dtype, name=f"{s}_encoder")(inputs[s]) for s in cfg.streams], 2)
+    b = tokens.shape[0]
+    x = _self_blocks(cfg, "tokens", tokens.reshape(b, cfg.horizon * n, width), e, cfg.state_blocks + 1, None, dtype)
+    x = x.reshape(b, cfg.horizon, n, width)
+    return {s: Decoder(width, cfg.element_dim(s), dtype, name=f"{s}_decoder")(x[:, :, i]) for i, s in enumerate(cfg.streams)}

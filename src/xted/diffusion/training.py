@@ -36,7 +36,7 @@ from tqdm.auto import tqdm
 from xted.atomic import atomic_path
 from xted.data import Dataset, Normalizer
 from xted.data.windows import window_index
-from xted.diffusion.denoiser import Denoiser, DenoiserConfig
+from xted.diffusion.denoiser import ARCHITECTURES, Denoiser, DenoiserConfig
 from xted.diffusion.schedule import Schedule, cosine_schedule, q_sample
 from xted.errors import InputError
 
@@ -52,28 +52,14 @@ _DENOISER_FIELDS = tuple(f.name for f in dataclasses.fields(DenoiserConfig))
 
 
 @dataclass(frozen=True)
-class PriorConfig:
-    """Denoiser architecture (see :class:`DenoiserConfig`), diffusion and optimisation.
+class PriorConfig(DenoiserConfig):
+    """The denoiser's architecture (the fields of :class:`DenoiserConfig`), diffusion and
+    optimisation, in one flat record so that every field is a ``--set FIELD=VALUE`` override.
 
     Learning rate: linear warm-up over ``warmup_steps``, then constant, or, with ``decay_steps``,
     multiplied by a cosine from 1 at step 0 to 0.1 at ``decay_steps`` (constant after).
     """
 
-    state_dim: int
-    action_dim: int
-    use_reward: bool = True
-    width_multiplier: float = 16
-    min_width: int = 0
-    width_override: int | None = None
-    state_blocks: int = 2
-    action_blocks: int = 2
-    reward_blocks: int = 1
-    num_heads: int = 4
-    mlp_ratio: int = 4
-    cond_dim: int = 128
-    return_condition: bool = False
-    horizon: int = 20
-    dtype: str = "float32"
     num_timesteps: int = 200
     batch_size: int = 256
     learning_rate: float = 2e-4
@@ -97,6 +83,7 @@ class PriorConfig:
             (0.0 <= self.condition_dropout <= 1.0,
              f"condition_dropout must be in [0, 1], got {self.condition_dropout}"),
             (self.loss_weighting in LOSS_WEIGHTS, f"loss_weighting must be one of {sorted(LOSS_WEIGHTS)}"),
+            (self.architecture in ARCHITECTURES, f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
         ]
         for ok, message in checks:
