@@ -88,3 +88,17 @@ def test_heldout_episodes_are_left_out_of_training(files):
     assert train.num_episodes + heldout.num_episodes == target.num_episodes
     assert len(train) + len(heldout) == len(target)
     assert split_heldout(target, 0) == (target, None)
+
+
+def test_demo_on_shipped_data(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path / "demo"), "--proxy-steps", "300"]) == 0
+    out = capsys.readouterr().out
+    edited = load(tmp_path / "demo" / "halfcheetah-gravity-edited.npz")
+    source = load("halfcheetah-gravity")
+    assert len(edited) == len(source)
+    np.testing.assert_array_equal(edited.actions[0], source.actions[0])  # the held first transition
+    maes = {line.split()[0]: float(line.split("MAE=")[1].split()[0]) for line in out.splitlines() if "MAE=" in line
+            and line.startswith("  ")}
+    assert maes["target"] < 1e-5 < maes["source"]
+    assert "edited / source MAE" in out and "learned proxy" in out and "forward-velocity correlation" in out
+    assert main(["demo", "--out", str(tmp_path / "bad"), "--proxy-steps", "-1"]) == 2

@@ -83,7 +83,8 @@ class PriorConfig(DenoiserConfig):
             (0.0 <= self.condition_dropout <= 1.0,
              f"condition_dropout must be in [0, 1], got {self.condition_dropout}"),
             (self.loss_weighting in LOSS_WEIGHTS, f"loss_weighting must be one of {sorted(LOSS_WEIGHTS)}"),
-            (self.architecture in ARCHITECTURES, f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
+            (self.architecture in ARCHITECTURES,
+             f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
         ]
         for ok, message in checks:
