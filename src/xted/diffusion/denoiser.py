@@ -295,7 +295,7 @@ def _self_blocks(cfg: DenoiserConfig, name: str, x: jnp.ndarray, e: jnp.ndarray,
 
 def _streams(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
     """xTED (and its causal variant): per-stream self-attention, then the cross-attention wiring."""
-    times = jnp.arange(cfg.horizon)
+    times = jnp.arange(inputs["state"].shape[1])
     causal = cfg.architecture == "causal"
     h = {}
     for s in cfg.streams:
@@ -323,7 +323,7 @@ def _temporal_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp
     """TC: element tokens interleaved in time, ``s_0, a_0, r_0, s_1, ...``, one sequence."""
     width, n = cfg.width("state"), len(cfg.streams)
     tokens = jnp.stack([Encoder(width, cfg.horizon, dtype, name=f"{s}_encoder")(inputs[s]) for s in cfg.streams], 2)
-    b = tokens.shape[0]
-    x = _self_blocks(cfg, "tokens", tokens.reshape(b, cfg.horizon * n, width), e, cfg.state_blocks + 1, None, dtype)
-    x = x.reshape(b, cfg.horizon, n, width)
+    b, h = tokens.shape[:2]
+    x = _self_blocks(cfg, "tokens", tokens.reshape(b, h * n, width), e, cfg.state_blocks + 1, None, dtype)
+    x = x.reshape(b, h, n, width)
     return {s: Decoder(width, cfg.element_dim(s), dtype, name=f"{s}_decoder")(x[:, :, i]) for i, s in enumerate(cfg.streams)}
