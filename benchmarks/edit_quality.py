@@ -60,19 +60,20 @@ def main() -> None:
           "| low-pass diff matched / mismatched | low-freq magnitude diff matched / mismatched "
           "| fwd-velocity corr matched / mismatched | floor sim / proxy |")
     print("|---|---|---|---|---|---|---|---|---|")
+    sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
+    unedited = {gap: {"sim_source": sim(d), "proxy_source": proxy.error(d).mae,
+                      "proxy_resolution_source": proxy_resolution(d)} for gap, d in sources.items()}
     for kappa in args.kappa:
         config = EditConfig(kappa=kappa, seed=args.seed)
         floor, _ = edit_dataset(prior, heldout, config)
         floor_row = {"sim": sim(floor), "proxy": proxy.error(floor).mae}
-        for gap in args.gaps:
-            source = load(f"{args.env}-{gap}")
+        for gap, source in sources.items():
             edited, report = edit_dataset(prior, source, config)
             content = content_similarity(source, edited, forward)
             row = {
                 "env": args.env, "gap": gap, "kappa": kappa, "prior": str(args.prior), "target": args.target,
-                "sim_source": sim(source), "sim_edited": sim(edited),
-                "proxy_source": proxy.error(source).mae, "proxy_edited": proxy.error(edited).mae,
-                "proxy_resolution_heldout": resolution_heldout, "proxy_resolution_source": proxy_resolution(source),
+                **unedited[gap], "sim_edited": sim(edited), "proxy_edited": proxy.error(edited).mae,
+                "proxy_resolution_heldout": resolution_heldout,
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
             }
             m, mm = content["matched"], content["mismatched"]
