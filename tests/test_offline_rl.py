@@ -60,6 +60,20 @@ def test_vmapped_seeds_match_single_seed_runs():
             np.testing.assert_allclose(a, np.asarray(b)[i], rtol=1e-4, atol=1e-5)
 
 
+def test_td3bc_delayed_actor_step_stays_a_branch_under_vmap():
+    """The actor step is scheduled on the unbatched update index, so vmapping seeds keeps it a
+    ``cond``; scheduled on the per-seed state it would become a select computing both branches."""
+    config, data = TINY["td3bc"], synthetic()
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in (3, 4)])
+    states = init_seeds(config, keys, 2, 2, 10)
+    data = {**data, "rewards": np.stack([data["rewards"]] * 2)}
+    jaxpr = str(jax.make_jaxpr(lambda s, k: train_seeds(config, s, k, data, 4, start=1))(states, keys))
+    assert " cond[" in jaxpr
+    _, _, infos = train_seeds(config, states, keys, data, 4, start=1)
+    actor_updated = ~np.isnan(np.asarray(infos["actor_loss"]))
+    np.testing.assert_array_equal(actor_updated, [[False, True, False, True]] * 2)  # updates 1..4
+
+
 def test_evaluation_of_a_zero_policy_matches_a_manual_rollout():
     domain, config = parse_domain("halfcheetah"), BCConfig(hidden=(8,))
     actor = init_bc(jax.random.PRNGKey(0), 17, 6, config).actor

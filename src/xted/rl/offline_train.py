@@ -40,16 +40,16 @@ OBS_STD_EPS = 1e-3
 
 class Algorithm(NamedTuple):
     init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state
-    update: Callable[..., Any]  # (state, batch, config) -> (state, info)
+    update: Callable[..., Any]  # (state, batch, config, step) -> (state, info); step: the update's index
     act: Callable[..., Any]  # (actor TrainState, standardised obs) -> actions
 
 
 _ALGORITHMS: dict[type, Algorithm] = {
-    IQLConfig: Algorithm(init_iql, iql_update, iql_act),
+    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step: iql_update(state, batch, config), iql_act),
     TD3BCConfig: Algorithm(lambda rng, o, a, config, steps: init_td3bc(rng, o, a, config), td3bc_update,
                            deterministic_act),
     BCConfig: Algorithm(lambda rng, o, a, config, steps: init_bc(rng, o, a, config),
-                        lambda state, batch, config: bc_update(state, batch), deterministic_act),
+                        lambda state, batch, config, step: bc_update(state, batch), deterministic_act),
 }
 
 
@@ -125,30 +125,35 @@ def init_seeds(config: Learner, keys, obs_dim: int, action_dim: int, steps: int)
 
 
 @partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
-def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0):
-    """``steps`` updates of one seed on batches drawn from ``data``: (state, key, per-step infos)."""
+def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0, start=0):
+    """``steps`` updates of one seed on batches drawn from ``data``: (state, key, per-step infos).
+
+    ``start`` is the index of the first update. It is passed apart from the state so that under
+    ``vmap`` over seeds it stays unbatched and a schedule on it (TD3+BC's delayed actor step)
+    remains a ``lax.cond`` instead of becoming a select that computes both branches.
+    """
     update = _ALGORITHMS[type(config)].update
     size = data["observations"].shape[0]
 
-    def step(carry, _):
+    def step(carry, index):
         state, key = carry
         key, batch_key, noise_key = jax.random.split(key, 3)
         idx = jax.random.randint(batch_key, (config.batch_size,), 0, size)
         batch = {k: v[idx] for k, v in data.items()}
         if s4rl_noise > 0:
             batch = s4rl_augment(batch, noise_key, s4rl_noise)
-        state, info = update(state, batch, config)
+        state, info = update(state, batch, config, index)
         return (state, key), info
 
-    (state, key), infos = jax.lax.scan(step, (state, key), None, length=steps)
+    (state, key), infos = jax.lax.scan(step, (state, key), start + jnp.arange(steps))
     return state, key, infos
 
 
 @partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
-def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0):
+def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0, start=0):
     """:func:`train_steps` vmapped over stacked seeds; ``data["rewards"]`` is ``[seeds, N]``."""
     def one(state, key, rewards):
-        return train_steps(config, state, key, {**data, "rewards": rewards}, steps, s4rl_noise)
+        return train_steps(config, state, key, {**data, "rewards": rewards}, steps, s4rl_noise, start)
 
     return jax.vmap(one)(states, keys, data["rewards"])
 
@@ -265,7 +270,8 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
                smoothing=0.1)
     for end in _segment_ends(steps, eval_every):
         started = time.perf_counter()
-        states, train_keys, _ = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise)
+        states, train_keys, _ = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
+                                               position)
         jax.block_until_ready(states)
         train_seconds += time.perf_counter() - started
         bar.update(end - position)

@@ -77,8 +77,10 @@ def actor_loss(actor_params, state: TD3BCState, batch, config: TD3BCConfig):
 
 
 @partial(jax.jit, static_argnames="config")
-def td3bc_update(state: TD3BCState, batch, config: TD3BCConfig):
+def td3bc_update(state: TD3BCState, batch, config: TD3BCConfig, step=None):
     """One critic step; every ``policy_delay``-th also an actor step and the target updates.
+
+    ``step`` (default: the critic's own step count) is the index that schedules the actor step.
 
     On critic-only steps the actor entries of the returned info are NaN (not computed).
     """
@@ -99,5 +101,6 @@ def td3bc_update(state: TD3BCState, batch, config: TD3BCConfig):
         nan = jnp.full((), jnp.nan, jnp.float32)
         return state, {"actor_loss": nan, "bc_loss": nan}
 
-    state, actor_info = jax.lax.cond(state.critic.step % config.policy_delay == 0, actor_step, critic_only, state)
+    step = state.critic.step if step is None else step
+    state, actor_info = jax.lax.cond(step % config.policy_delay == 0, actor_step, critic_only, state)
     return state, {**info, **actor_info}
