@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from xted.data.build import BehaviourPolicies, build_dataset, select_checkpoints
+from xted.data.build import BehaviourPolicies, build_dataset, policies_dir, policy_reference, select_checkpoints
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
 from xted.errors import InputError
@@ -21,6 +21,12 @@ def tiny_run(tmp_path_factory):
 def test_select_checkpoints_picks_best_and_a_third():
     evals = [{"step": s, "return_mean": r} for s, r in [(1, 100.0), (2, 1000.0), (3, 3000.0), (4, 2500.0)]]
     assert select_checkpoints(evals) == (3, 2)
+
+
+def test_policy_reference_names_shipped_policies_without_the_install_path(tmp_path):
+    shipped = policies_dir() / "halfcheetah-expert.msgpack"
+    assert policy_reference(shipped) == "xted/assets/policies/halfcheetah-expert.msgpack"
+    assert policy_reference(tmp_path / "mine.msgpack") == str(tmp_path / "mine.msgpack")
 
 
 @pytest.mark.parametrize("level", ["medium", "medium-replay", "expert", "medium-expert"])

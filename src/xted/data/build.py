@@ -65,6 +65,16 @@ def policies_dir() -> Path:
     return assets_dir().parent / "policies"
 
 
+def policy_reference(path: Path) -> str:
+    """How metadata names a policy file: ``xted/assets/policies/NAME`` for a shipped one (not this
+    machine's install path), else the path as given."""
+    path = Path(path)
+    try:
+        return f"xted/assets/policies/{path.resolve().relative_to(policies_dir().resolve()).as_posix()}"
+    except ValueError:
+        return str(path)
+
+
 def select_checkpoints(evals: list[dict]) -> tuple[int, int]:
     """(best step, medium step): medium is the checkpoint before the best whose evaluation
     return is closest to a third of the best's."""
@@ -135,7 +145,7 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
         if policies.replay is None or policies.medium is None or not policies.replay.exists():
             raise InputError(f"no medium replay buffer for {domain.name}")
         arrays, returns = _subset_episodes(_replay_prefix(policies.replay, policies.medium), transitions, seed)
-        policy_info = {"policy": str(policies.medium), "replay_buffer": str(policies.replay)}
+        policy_info = {"policy": policy_reference(policies.medium), "replay_buffer": policy_reference(policies.replay)}
     else:
         parts = {"medium": [(policies.medium, transitions)], "expert": [(policies.expert, transitions)],
                  "source": [(policies.expert, transitions)],
@@ -149,7 +159,7 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
                                            desc=f"{domain.name} {level}")
             chunks.append(chunk)
             all_returns.append(chunk_returns)
-            used.append({"path": str(path), "step": actor.meta.get("step"), "train_domain": actor.meta.get("domain")})
+            used.append({"path": policy_reference(path), "step": actor.meta.get("step"), "train_domain": actor.meta.get("domain")})
         arrays = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
         returns = np.concatenate(all_returns)
         policy_info = {"policy": used}
