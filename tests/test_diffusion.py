@@ -160,7 +160,7 @@ def test_cross_wiring(tiny_model):
     assert dataclasses.replace(TINY.denoiser, use_reward=False).cross_wiring == CROSS_WIRING[:2]
 
 
-@pytest.mark.parametrize("architecture", ["causal", "feature_concat", "temporal_concat"])
+@pytest.mark.parametrize("architecture", ["causal", "feature_concat", "temporal_concat", "temporal_unet"])
 def test_ablation_architectures(architecture):
     cfg = dataclasses.replace(TINY.denoiser, architecture=architecture)
     model = Denoiser(cfg)
@@ -169,6 +169,8 @@ def test_ablation_architectures(architecture):
     apply = jax.jit(lambda s, a, r: model.apply(random_params(shapes), s, a, r, t, returns))
     base = apply(s, a, r)
     assert [e.shape for e in base] == [s.shape, a.shape, r.shape]
+    short = apply(s[:, :3], a[:, :3], r[:, :3])  # a window shorter than the horizon (odd: U-Net pads)
+    assert [e.shape for e in short] == [s[:, :3].shape, a[:, :3].shape, r[:, :3].shape]
     late = apply(s.at[:, 2:].add(1.0), a.at[:, 2:].add(1.0), r.at[:, 2:].add(1.0))
     if architecture == "causal":  # steps 0-1 cannot see steps 2+, in any stream
         for before, after in zip(base, late):
@@ -229,6 +231,24 @@ def test_loss_decreases():
     assert np.isfinite(float(metrics["loss"]))
     assert int(state.step) == 50
     assert held_out_loss(state) < 0.8 * before
+
+
+def test_inverse_dynamics_prior_learns_its_inverse_models():
+    config = dataclasses.replace(TINY, architecture="inverse_dynamics")
+    state = init_train_state(config, jax.random.key(0))
+    step = make_train_step(config)
+    key = jax.random.key(1)
+    history = []
+    for i in range(150):
+        state, metrics = step(state, _sine_batch(config.batch_size, config.horizon, seed=i), key)
+        history.append(metrics)
+    for name in ("mse_state", "mse_action", "mse_reward"):
+        values = np.array([float(m[name]) for m in history])
+        assert values[-10:].mean() < 0.8 * values[:10].mean(), name
+    eps = Denoiser(config.denoiser).apply(state.params, *(_sine_batch(2, config.horizon, seed=0)[s]
+                                                          for s in ("state", "action", "reward")),
+                                          jnp.zeros(2, jnp.int32), None)
+    assert eps[0].shape == (2, config.horizon, 3) and eps[1] is None and eps[2] is None
 
 
 def _flat(tree) -> np.ndarray:

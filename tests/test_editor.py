@@ -13,6 +13,7 @@ from test_diffusion import TINY
 
 from xted.data import Normalizer
 from xted.diffusion import EditConfig, Prior, PriorConfig, edit_dataset, edit_windows
+from xted.diffusion.denoiser import apply_inverse
 from xted.diffusion.editor import _plan
 from xted.diffusion.training import init_train_state
 from xted.errors import InputError
@@ -141,6 +142,26 @@ def test_reward_free_prior_carries_rewards(source):
     result, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH))
     np.testing.assert_array_equal(result.rewards, source.rewards)
     assert not np.allclose(result.observations, source.observations)
+
+
+@pytest.mark.parametrize("hold_last", [False, True])
+def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states(hold_last):
+    """Inv: states are denoised; every transition's action and reward inside the window comes from
+    the inverse models applied to the edited states; held transitions stay bit-identical."""
+    prior = random_prior(dataclasses.replace(TINY, architecture="inverse_dynamics"))
+    s, a, r = _windows()
+    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(hold_last=hold_last),
+                                                             jax.random.key(0)))
+    for x, y in zip((s, a, r), (out_s, out_a, out_r)):
+        np.testing.assert_array_equal(y[:, 0], x[:, 0])
+    for x, y in zip((a, r), (out_a, out_r)):  # the last action and reward are in no transition of the window
+        np.testing.assert_array_equal(y[:, -1], x[:, -1])
+    if hold_last:
+        np.testing.assert_array_equal(out_s[:, -1], s[:, -1])
+    assert not np.allclose(out_s[:, 1:-1], s[:, 1:-1])
+    predicted_a, predicted_r = apply_inverse(prior.config.denoiser, prior.params, out_s)
+    np.testing.assert_allclose(out_a[:, 1:-1], np.asarray(predicted_a)[:, 1:], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(out_r[:, 1:-1], np.asarray(predicted_r)[:, 1:], rtol=1e-5, atol=1e-6)
 
 
 def test_dimension_mismatch(prior):

@@ -43,7 +43,11 @@ CROSS_WIRING: tuple[tuple[str, tuple[str, ...]], ...] = (
 # "feature_concat" one token per step holding [s, a, r] (FC); "temporal_concat" the 2H or 3H
 # element tokens s_0, a_0, r_0, s_1, ... in one sequence at the state stream's width (TC).
 # FC and TC run ``state_blocks + 1`` self-attention blocks: the xTED state stream's depth.
-ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat")
+# "inverse_dynamics" diffuses states only (one stream, ``state_blocks + 1`` blocks) and fills in
+# actions and rewards with inverse models trained beside it (Inv, :class:`InverseDynamics`).
+# "temporal_unet" is the paper's non-transformer baseline (its appendix comparison): Diffuser's
+# temporal U-Net over the [s, a, r] sequence (see :func:`_temporal_unet`).
+ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat", "inverse_dynamics", "temporal_unet")
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,11 @@ class DenoiserConfig:
     @property
     def streams(self) -> tuple[str, ...]:
         return STREAMS if self.use_reward else STREAMS[:2]
+
+    @property
+    def diffused_streams(self) -> tuple[str, ...]:
+        """The streams the denoiser predicts noise for (Inv: states only; its inverse models give the rest)."""
+        return ("state",) if self.architecture == "inverse_dynamics" else self.streams
 
     @property
     def cross_wiring(self) -> tuple[tuple[str, tuple[str, ...]], ...]:
@@ -247,7 +256,8 @@ class ConditionEmbedding(nn.Module):
 
 class Denoiser(nn.Module):
     """``(states [B,H,ds], actions [B,H,da], rewards [B,H,1] | None, t [B], returns [B] | None,
-    drop_condition [B] bool | None) -> (eps_s, eps_a, eps_r | None)``.
+    drop_condition [B] bool | None) -> (eps_s, eps_a, eps_r | None)``; the noise of a stream not
+    in ``config.diffused_streams`` is None (its input is ignored).
 
     ``rewards`` must be given exactly when ``config.use_reward``. ``returns`` (normalised to
     [0, 1]) is used only when ``config.return_condition``; None means the null condition.
@@ -273,9 +283,10 @@ class Denoiser(nn.Module):
         inputs = {s: x.astype(dtype) for s, x in zip(STREAMS, (states, actions, rewards)) if s in cfg.streams}
         e = ConditionEmbedding(cfg.cond_dim, cfg.return_condition, dtype, name="condition")(t, returns, drop_condition)
         build = {"xted": _streams, "causal": _streams, "feature_concat": _feature_concat,
-                 "temporal_concat": _temporal_concat}[cfg.architecture]
+                 "temporal_concat": _temporal_concat, "inverse_dynamics": _states_only,
+                 "temporal_unet": _temporal_unet}[cfg.architecture]
         eps = {s: x.astype(jnp.float32) for s, x in build(cfg, inputs, e, dtype).items()}
-        return eps["state"], eps["action"], eps.get("reward")
+        return eps["state"], eps.get("action"), eps.get("reward")
 
 
 def _causal_mask(query_times: jnp.ndarray, key_times: jnp.ndarray) -> jnp.ndarray:
@@ -309,14 +320,71 @@ def _streams(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray
     return {s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(crossed[s]) for s in cfg.streams}
 
 
+def _split_joint(cfg: DenoiserConfig, joint: jnp.ndarray) -> dict:
+    """``[..., ds + da (+ 1)]`` -> one array per stream."""
+    splits = list(itertools.accumulate(cfg.element_dim(s) for s in cfg.streams))[:-1]
+    return dict(zip(cfg.streams, jnp.split(joint, splits, axis=-1)))
+
+
 def _feature_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
     """FC: one token per step, ``[s_t, a_t, r_t]``, one stream."""
     joint = jnp.concatenate([inputs[s] for s in cfg.streams], axis=-1)
     x = Encoder(cfg.width("joint"), cfg.horizon, dtype, name="joint_encoder")(joint)
     x = _self_blocks(cfg, "joint", x, e, cfg.state_blocks + 1, None, dtype)
-    out = Decoder(cfg.width("joint"), cfg.element_dim("joint"), dtype, name="joint_decoder")(x)
-    splits = list(itertools.accumulate(cfg.element_dim(s) for s in cfg.streams))[:-1]
-    return dict(zip(cfg.streams, jnp.split(out, splits, axis=-1)))
+    return _split_joint(cfg, Decoder(cfg.width("joint"), cfg.element_dim("joint"), dtype, name="joint_decoder")(x))
+
+
+def _states_only(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
+    """Inv's denoiser: the state stream alone, without cross-attention."""
+    x = Encoder(cfg.width("state"), cfg.horizon, dtype, name="state_encoder")(inputs["state"])
+    x = _self_blocks(cfg, "state", x, e, cfg.state_blocks + 1, None, dtype)
+    return {"state": Decoder(cfg.width("state"), cfg.state_dim, dtype, name="state_decoder")(x)}
+
+
+INVERSE_PARAMS = "inverse_dynamics"  # Inv's inverse models, a subtree of the prior's "params" collection
+
+
+class InverseDynamics(nn.Module):
+    """Inv's inverse models on normalised windows: ``a_t = f(s_t, s_{t+1})`` and, with rewards,
+    ``r_t = g(s_t, a_t, s_{t+1})``, each an MLP of two hidden layers at ``width("joint")``.
+
+    ``(states [B, H, ds], actions [B, H, da] | None) -> (actions [B, H-1, da], rewards [B, H-1, 1] | None)``
+    for the ``H - 1`` transitions of a window. ``g`` reads the given actions (training) or, with
+    None, the predicted ones (editing).
+    """
+
+    config: DenoiserConfig
+
+    @nn.compact
+    def __call__(self, states: jnp.ndarray, actions: jnp.ndarray | None = None):
+        cfg = self.config
+        width = cfg.width("joint")
+
+        def mlp(x: jnp.ndarray, out: int, name: str) -> jnp.ndarray:
+            x = nn.gelu(nn.Dense(width, name=f"{name}_0")(x))
+            return Mlp(width, out, name=f"{name}_1")(x)
+
+        pairs = jnp.concatenate([states[:, :-1], states[:, 1:]], axis=-1)
+        predicted = mlp(pairs, cfg.action_dim, "action")
+        if not cfg.use_reward:
+            return predicted, None
+        used = predicted if actions is None else actions[:, :-1]
+        return predicted, mlp(jnp.concatenate([pairs, used], axis=-1), 1, "reward")
+
+
+def init_params(cfg: DenoiserConfig, rng, states: jnp.ndarray, actions: jnp.ndarray, rewards: jnp.ndarray | None,
+                t: jnp.ndarray, returns: jnp.ndarray | None, drop: jnp.ndarray | None) -> dict:
+    """The denoiser's parameters; for Inv with its inverse models under ``params[INVERSE_PARAMS]``."""
+    params = Denoiser(cfg).init(rng, states, actions, rewards, t, returns, drop)
+    if cfg.architecture != "inverse_dynamics":
+        return params
+    inverse = InverseDynamics(cfg).init(rng, states, actions)["params"]
+    return {**params, "params": {**params["params"], INVERSE_PARAMS: inverse}}
+
+
+def apply_inverse(cfg: DenoiserConfig, params: dict, states: jnp.ndarray, actions: jnp.ndarray | None = None):
+    """:class:`InverseDynamics` with the inverse models held in a prior's ``params``."""
+    return InverseDynamics(cfg).apply({"params": params["params"][INVERSE_PARAMS]}, states, actions)
 
 
 def _temporal_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
@@ -327,3 +395,70 @@ def _temporal_concat(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp
     x = _self_blocks(cfg, "tokens", tokens.reshape(b, h * n, width), e, cfg.state_blocks + 1, None, dtype)
     x = x.reshape(b, h, n, width)
     return {s: Decoder(width, cfg.element_dim(s), dtype, name=f"{s}_decoder")(x[:, :, i]) for i, s in enumerate(cfg.streams)}
+
+
+# Temporal U-Net (Janner et al. 2022, Diffuser; Ajay et al. 2023): 1-d convolutions over time.
+UNET_CHANNEL_FRACTIONS = (4, 2, 1)  # level i has width("joint") // fraction channels
+UNET_KERNEL = 5
+UNET_GROUPS = 8
+
+
+class ConvNormMish(nn.Module):
+    """Conv1d (``UNET_KERNEL`` wide, same length) -> GroupNorm -> Mish."""
+
+    channels: int
+    dtype: jnp.dtype = jnp.float32
+
+    @nn.compact
+    def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+        x = nn.Conv(self.channels, (UNET_KERNEL,), padding="SAME", dtype=self.dtype)(x)
+        x = nn.GroupNorm(math.gcd(UNET_GROUPS, self.channels), dtype=self.dtype)(x)
+        return x * jnp.tanh(nn.softplus(x))
+
+
+class ResidualTemporalBlock(nn.Module):
+    """Two :class:`ConvNormMish`, the condition added (per channel) between them, and a residual
+    (1x1 convolution where the channel count changes)."""
+
+    channels: int
+    dtype: jnp.dtype = jnp.float32
+
+    @nn.compact
+    def __call__(self, x: jnp.ndarray, e: jnp.ndarray) -> jnp.ndarray:
+        h = ConvNormMish(self.channels, self.dtype)(x)
+        h = h + nn.Dense(self.channels, dtype=self.dtype)(e * jnp.tanh(nn.softplus(e)))[:, None]
+        h = ConvNormMish(self.channels, self.dtype)(h)
+        skip = x if x.shape[-1] == self.channels else nn.Conv(self.channels, (1,), dtype=self.dtype)(x)
+        return h + skip
+
+
+def _temporal_unet(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray, dtype: jnp.dtype) -> dict:
+    """U-Net over the ``[s_t, a_t, r_t]`` sequence: at each level two residual blocks, then a
+    stride-2 convolution (time halves, channels per :data:`UNET_CHANNEL_FRACTIONS`); two middle
+    blocks; the mirror image upwards with the skip connections concatenated; a final convolution
+    block and a zero-initialised 1x1 projection. The window is zero-padded at its end to a multiple
+    of ``2 ** (levels - 1)`` and cropped back."""
+    joint = jnp.concatenate([inputs[s] for s in cfg.streams], axis=-1)
+    length = joint.shape[1]
+    factor = 2 ** (len(UNET_CHANNEL_FRACTIONS) - 1)
+    x = jnp.pad(joint, ((0, 0), (0, -length % factor), (0, 0)))
+    widths = [max(cfg.width("joint") // f, UNET_GROUPS) for f in UNET_CHANNEL_FRACTIONS]
+    skips = []
+    for level, width in enumerate(widths):
+        for i in range(2):
+            x = ResidualTemporalBlock(width, dtype, name=f"down_{level}_{i}")(x, e)
+        skips.append(x)
+        if level < len(widths) - 1:
+            x = nn.Conv(width, (3,), strides=(2,), padding=((1, 1),), dtype=dtype, name=f"downsample_{level}")(x)
+    for i in range(2):
+        x = ResidualTemporalBlock(widths[-1], dtype, name=f"middle_{i}")(x, e)
+    for level in reversed(range(len(widths))):
+        if level < len(widths) - 1:
+            x = nn.ConvTranspose(widths[level + 1], (4,), strides=(2,), padding="SAME", dtype=dtype,
+                                 name=f"upsample_{level}")(x)
+        x = jnp.concatenate([x, skips[level]], axis=-1)
+        for i in range(2):
+            x = ResidualTemporalBlock(widths[level], dtype, name=f"up_{level}_{i}")(x, e)
+    x = ConvNormMish(widths[0], dtype, name="final_block")(x)
+    out = nn.Conv(cfg.element_dim("joint"), (1,), kernel_init=nn.initializers.zeros, dtype=dtype, name="final_projection")(x)
+    return _split_joint(cfg, out[:, :length])

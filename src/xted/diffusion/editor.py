@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from xted.data import Dataset
-from xted.diffusion.denoiser import Denoiser, DenoiserConfig
+from xted.diffusion.denoiser import Denoiser, DenoiserConfig, apply_inverse
 from xted.diffusion.schedule import Schedule, ddim_step, ddim_timesteps, ddpm_step, q_sample
 from xted.diffusion.training import Prior
 from xted.errors import InputError
@@ -108,7 +108,7 @@ def _plan(prior: Prior, config: EditConfig) -> _Plan:
 
 def _predict_noise(params: Any, plan: _Plan, x: dict[str, jnp.ndarray], t: jnp.ndarray, returns: jnp.ndarray) -> dict:
     model = Denoiser(plan.denoiser)
-    streams = plan.denoiser.streams
+    streams = plan.denoiser.diffused_streams
 
     def apply(inputs: dict[str, jnp.ndarray], tt: jnp.ndarray, r: jnp.ndarray | None, drop: jnp.ndarray | None):
         eps = model.apply(params, inputs["state"], inputs["action"], inputs.get("reward"), tt, r, drop)
@@ -143,8 +143,11 @@ def _noise(keys: jnp.ndarray, path: tuple[Any, ...], like: jnp.ndarray) -> jnp.n
 def _edit(
     params: Any, schedule: Schedule, x0: dict[str, jnp.ndarray], keys: jnp.ndarray, returns: jnp.ndarray, plan: _Plan
 ) -> dict[str, jnp.ndarray]:
-    """Noise ``x0`` to ``timesteps[0]`` and run the reverse chain over ``timesteps``, ``iterations`` times."""
-    streams = plan.denoiser.streams
+    """Noise ``x0`` to ``timesteps[0]`` and run the reverse chain over ``timesteps``, ``iterations`` times.
+
+    Inv runs the chain over states alone, then its inverse models give the actions and rewards of
+    every transition but the held ones."""
+    streams = plan.denoiser.diffused_streams
     b = keys.shape[0]
     ts = jnp.asarray(plan.timesteps, jnp.int32)
     ts_prev = jnp.concatenate([ts[1:], jnp.array([-1], jnp.int32)])
@@ -161,7 +164,7 @@ def _edit(
 
         def step(i: jnp.ndarray, x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
             t = jnp.full((b,), ts[i])
-            eps = _predict_noise(params, plan, x, t, returns)
+            eps = _predict_noise(params, plan, {**x0, **x}, t, returns)  # Inv reads no action or reward
             if plan.sampler == "ddim":
                 t_prev = jnp.full((b,), ts_prev[i])
                 return hold({s: ddim_step(schedule, x[s], t, t_prev, eps[s], plan.clip) for s in streams})
@@ -172,7 +175,14 @@ def _edit(
 
         return jax.lax.fori_loop(0, len(plan.timesteps), step, x)
 
-    return jax.lax.fori_loop(0, plan.iterations, iteration, x0)
+    edited = jax.lax.fori_loop(0, plan.iterations, iteration, {s: x0[s] for s in streams})
+    if plan.denoiser.architecture != "inverse_dynamics":
+        return edited
+    out = dict(x0, state=edited["state"])
+    for s, predicted in zip(("action", "reward"), apply_inverse(plan.denoiser, params, edited["state"])):
+        if predicted is not None:  # the window's last action and reward belong to no transition in it
+            out[s] = x0[s].at[:, 1:-1].set(predicted[:, 1:])
+    return out
 
 
 def _editor(prior: Prior, config: EditConfig) -> Callable[[dict[str, np.ndarray], jnp.ndarray], dict[str, jnp.ndarray]]:

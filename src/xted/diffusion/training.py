@@ -36,7 +36,7 @@ from tqdm.auto import tqdm
 from xted.atomic import atomic_path
 from xted.data import Dataset, Normalizer
 from xted.data.windows import window_index
-from xted.diffusion.denoiser import ARCHITECTURES, Denoiser, DenoiserConfig
+from xted.diffusion.denoiser import ARCHITECTURES, Denoiser, DenoiserConfig, apply_inverse, init_params
 from xted.diffusion.schedule import Schedule, cosine_schedule, q_sample
 from xted.errors import InputError
 
@@ -172,12 +172,11 @@ def make_optimizer(config: PriorConfig) -> optax.GradientTransformation:
 @functools.partial(jax.jit, static_argnums=0)
 def init_train_state(config: PriorConfig, rng: jax.Array) -> TrainState:
     """Fresh parameters (EMA equal to them), optimiser state and step 0."""
-    model = Denoiser(config.denoiser)
     h = config.horizon
     dummy = lambda d: jnp.zeros((1, h, d), jnp.float32)  # noqa: E731
-    params = model.init(
-        rng, dummy(config.state_dim), dummy(config.action_dim), dummy(1) if config.use_reward else None,
-        jnp.zeros(1, jnp.int32), jnp.zeros(1, jnp.float32), jnp.zeros(1, bool),
+    params = init_params(
+        config.denoiser, rng, dummy(config.state_dim), dummy(config.action_dim),
+        dummy(1) if config.use_reward else None, jnp.zeros(1, jnp.int32), jnp.zeros(1, jnp.float32), jnp.zeros(1, bool),
     )
     return TrainState(
         params=params,
@@ -192,14 +191,17 @@ def loss_fn(
     config: PriorConfig,
 ) -> tuple[jnp.ndarray, dict[str, jnp.ndarray]]:
     """Masked epsilon MSE. ``batch``: one ``[B, H, d]`` array per stream ("state", "action",
-    "reward"), ``loss_mask [B, H]`` and ``returns [B]`` (normalised to [0, 1])."""
-    streams = config.denoiser.streams
+    "reward"), ``loss_mask [B, H]`` and ``returns [B]`` (normalised to [0, 1]).
+
+    Inv adds the MSE of its inverse models on the window's clean transitions (every one of them,
+    the held first included); ``mse_action`` / ``mse_reward`` then report those."""
+    streams = config.denoiser.diffused_streams
     mask = batch["loss_mask"].astype(jnp.float32)
     b = mask.shape[0]
     t_rng, drop_rng, noise_rng = jax.random.split(rng, 3)
     t = jax.random.randint(t_rng, (b,), 0, schedule.num_timesteps)
     noise = {s: jax.random.normal(jax.random.fold_in(noise_rng, i), batch[s].shape) for i, s in enumerate(streams)}
-    x_t = {}
+    x_t = {s: batch[s] for s in config.denoiser.streams}  # streams not diffused are read by no model
     for s in streams:
         noised = q_sample(schedule, batch[s], t, noise[s])
         x_t[s] = noised.at[:, 0].set(batch[s][:, 0])
@@ -215,6 +217,12 @@ def loss_fn(
         total = total + jnp.sum(weight[:, None] * se)
     dims = sum(config.denoiser.element_dim(s) for s in streams)
     loss = total / (jnp.sum(mask) * dims)
+    if config.architecture == "inverse_dynamics":
+        predicted = apply_inverse(config.denoiser, params, batch["state"], batch["action"])
+        for s, p in zip(("action", "reward"), predicted):
+            if p is not None:
+                metrics[f"mse_{s}"] = jnp.mean(jnp.square(p - batch[s][:, :-1]))
+                loss = loss + metrics[f"mse_{s}"]
     return loss, {"loss": loss, **metrics}
 
 
