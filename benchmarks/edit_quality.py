@@ -1,7 +1,8 @@
 """Per-gap editing quality of a trained prior: simulator truth, the paper's learned proxy, task content.
 
     python benchmarks/edit_quality.py --env halfcheetah --prior PRIOR --target halfcheetah-medium-replay \
-        [--heldout-episodes 2] [--gaps gravity friction thigh] [--kappa 0.5] [--out runs/edit_quality.jsonl]
+        [--heldout-episodes 2] [--gaps gravity friction thigh] [--kappa 0.5] [--edit FIELD=VALUE ...]
+        [--out runs/edit_quality.jsonl]
 
 The prior must have been trained with the same ``--heldout-episodes`` (the split is deterministic):
 those target episodes measure the floor (the same edit applied to target data the prior never saw).
@@ -22,6 +23,7 @@ import json
 from pathlib import Path
 
 from xted.analysis import ProxyConfig, content_similarity, fit_proxy
+from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import load_prior, split_heldout
@@ -38,6 +40,8 @@ def main() -> None:
     parser.add_argument("--heldout-episodes", type=int, default=2)
     parser.add_argument("--gaps", nargs="+", default=["gravity", "friction", "thigh"])
     parser.add_argument("--kappa", nargs="+", type=float, default=[0.5])
+    parser.add_argument("--edit", nargs="*", default=[],
+                        help="EditConfig overrides (e.g. iterations=2 target_return=0.5), for every kappa.")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None, help="Append one JSON line per row.")
     args = parser.parse_args()
@@ -64,14 +68,15 @@ def main() -> None:
     unedited = {gap: {"sim_source": sim(d), "proxy_source": proxy.error(d).mae,
                       "proxy_resolution_source": proxy_resolution(d)} for gap, d in sources.items()}
     for kappa in args.kappa:
-        config = EditConfig(kappa=kappa, seed=args.seed)
+        config = EditConfig(**{**parse_overrides(EditConfig, args.edit), "kappa": kappa, "seed": args.seed})
         floor, _ = edit_dataset(prior, heldout, config)
         floor_row = {"sim": sim(floor), "proxy": proxy.error(floor).mae}
         for gap, source in sources.items():
             edited, report = edit_dataset(prior, source, config)
             content = content_similarity(source, edited, forward)
             row = {
-                "env": args.env, "gap": gap, "kappa": kappa, "prior": str(args.prior), "target": args.target,
+                "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit, "prior": str(args.prior),
+                "target": args.target,
                 **unedited[gap], "sim_edited": sim(edited), "proxy_edited": proxy.error(edited).mae,
                 "proxy_resolution_heldout": resolution_heldout,
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
