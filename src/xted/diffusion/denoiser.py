@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
 
 STREAMS = ("state", "action", "reward")
@@ -378,7 +379,7 @@ def init_params(cfg: DenoiserConfig, rng, states: jnp.ndarray, actions: jnp.ndar
     params = Denoiser(cfg).init(rng, states, actions, rewards, t, returns, drop)
     if cfg.architecture != "inverse_dynamics":
         return params
-    inverse = InverseDynamics(cfg).init(rng, states, actions)["params"]
+    inverse = InverseDynamics(cfg).init(jax.random.fold_in(rng, 1), states, actions)["params"]
     return {**params, "params": {**params["params"], INVERSE_PARAMS: inverse}}
 
 
