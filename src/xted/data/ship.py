@@ -1,11 +1,12 @@
 """Build the datasets and behaviour policies shipped with xted (maintainers' tool).
 
-    python -m xted.data.ship --runs runs/sac [--transitions 20000] [--seed 0]
+    python -m xted.data.ship [--runs runs/sac] [--transitions 20000] [--seed 0]
 
 From the SAC run folders ``RUNS/{domain}`` (``xted sac train``) it copies the behaviour policies
 into ``xted/assets/policies`` (target: expert and medium; sources: expert), the replay buffer up
 to the medium checkpoint, then makes every shipped dataset with exactly the command a user would
 run (``xted data make ... --out``) and records each file in ``assets/datasets/manifest.json``.
+Without ``--runs`` the shipped policies are kept and only the datasets are made again.
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--runs", type=Path, required=True)
+    parser.add_argument("--runs", type=Path, default=None, help="SAC run folders; default: keep the shipped policies")
     parser.add_argument("--envs", nargs="+", default=["halfcheetah", "walker2d"])
     parser.add_argument("--domains", nargs="+", default=["target", *sorted({g for gaps in PAPER_GAPS.values() for g in gaps})],
                         help="which of target and the paper's gaps to ship (default: all)")
@@ -87,7 +88,8 @@ def main(argv: list[str] | None = None) -> None:
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {"datasets": {}, "policies": {}}
     for env in args.envs:
         gaps = [None if name == "target" else name for name in args.domains]
-        manifest["policies"].update(_ship_policies(env, gaps, args.runs, policy_root))
+        if args.runs is not None:
+            manifest["policies"].update(_ship_policies(env, gaps, args.runs, policy_root))
         jobs = [(None, level) for level in TARGET_LEVELS if None in gaps] + [(gap, "source") for gap in gaps if gap]
         for gap, level in jobs:
             domain = parse_domain(env, gap)
