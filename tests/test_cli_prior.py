@@ -102,3 +102,5 @@ def test_demo_on_shipped_data(tmp_path, capsys):
     assert maes["target"] < 1e-5 < maes["source"]
     assert "edited / source MAE" in out and "learned proxy" in out and "forward-velocity correlation" in out
     assert main(["demo", "--out", str(tmp_path / "bad"), "--proxy-steps", "-1"]) == 2
+    assert main(["demo", "--out", str(tmp_path / "bad"), "--gap", "mass"]) == 2
+    assert not (tmp_path / "bad").exists()

@@ -75,24 +75,29 @@ def demo(
     steps: int = typer.Option(0, "--steps", help="Training steps with --train (default: the shipped prior's)."),
     out: Path = typer.Option(Path("xted-demo"), "--out", help="Folder for the demo's prior and edited data."),
     proxy_steps: int = typer.Option(20_000, "--proxy-steps", help="Training steps of the learned proxy (0: skip it)."),
+    gap: str = typer.Option("gravity", "--gap", help="The shipped source to edit: gravity, friction or thigh."),
     seed: int = typer.Option(0, "--seed"),
 ) -> None:
     """Edit the shipped 2x-gravity halfcheetah source with the shipped prior; replay it in the simulator.
 
     The prior was trained on the shipped halfcheetah-medium-replay target; target, source and edited
     source are all replayed in the target simulator (the true one-step dynamics error), measured with
-    the paper's learned dynamics proxy, and compared for task content (forward-velocity correlation)."""
+    the paper's learned dynamics proxy, and compared for task content (forward-velocity correlation).
+    ``--gap thigh`` edits the source whose gap is large enough for editing to lower that error."""
     from xted.analysis import ProxyConfig, content_similarity, fit_proxy
     from xted.data import formats, load, shipped
     from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.training import PriorConfig, load_prior, split_heldout, train_prior
-    from xted.envs import parse_domain
+    from xted.envs import PAPER_GAPS, parse_domain
     from xted.envs.dynamics import dynamics_error
     from xted.envs.make import forward_velocity_index
 
     if proxy_steps < 0:
         raise InputError(f"--proxy-steps must be >= 0, got {proxy_steps}")
-    target, source = load("halfcheetah-medium-replay"), load("halfcheetah-gravity")
+    if gap not in PAPER_GAPS["halfcheetah"]:
+        raise InputError(f"--gap must be one of {', '.join(PAPER_GAPS['halfcheetah'])}, got {gap!r}")
+    target, source = load("halfcheetah-medium-replay"), load(f"halfcheetah-{gap}")
+    edited_path = out / f"halfcheetah-{gap}-edited.npz"
     prior_folder = shipped.prior_dir(DEMO_PRIOR)
     if train_prior_first:
         shipped_prior = load_prior(prior_folder)
@@ -101,13 +106,13 @@ def demo(
         train_prior(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], prior_folder, config, steps or shipped_prior.step)
     prior = load_prior(prior_folder)
     edited, report = edit_dataset(prior, source, EditConfig(seed=seed))
-    formats.save(edited, out / "halfcheetah-gravity-edited.npz")
+    formats.save(edited, edited_path)
     domain = parse_domain("halfcheetah")
     rows = [(name, dynamics_error(domain, d.observations, d.actions, d.next_observations_or_derived()))
-            for name, d in (("target (medium-replay)", target), ("source (2x gravity)", source),
+            for name, d in (("target (medium-replay)", target), (f"source ({PAPER_GAPS['halfcheetah'][gap][gap]:g}x {gap})", source),
                             ("edited source", edited))]
     typer.echo(f"prior: {prior.path} (step {prior.step}); edited {report['transitions']} transitions "
-               f"in {report['seconds']:.1f} s -> {out / 'halfcheetah-gravity-edited.npz'}")
+               f"in {report['seconds']:.1f} s -> {edited_path}")
     typer.echo("simulator dynamics error in the halfcheetah target domain:")
     for name, error in rows:
         typer.echo(f"  {name:24s} MAE={error.mae:.4f}  MSE={error.mse:.4f}  (n={error.n})")
