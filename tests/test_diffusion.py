@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 
 import jax
 import jax.numpy as jnp
@@ -181,6 +182,8 @@ def test_ablation_architectures(architecture):
             assert not np.allclose(before[:, :2], after[:, :2])
     with pytest.raises(InputError, match="architecture must be one of"):
         dataclasses.replace(TINY, architecture="unet")
+    with pytest.raises(InputError, match="activation must be one of"):
+        dataclasses.replace(TINY, activation="tanh")
 
 
 # ----------------------------------------------------------------------------------- training
@@ -275,5 +278,11 @@ def test_train_prior_resume_and_refuse(tmp_path):
         assert [int(r["step"]) for r in csv.DictReader(f)] == [5, 10, 15, 20]
     with pytest.raises(InputError, match="different config"):
         train_prior(data, tmp_path / "a", dataclasses.replace(config, learning_rate=1e-4), steps=30, **kw)
+    # A prior.json written before a field existed resumes: the missing field takes its default.
+    meta = json.loads((tmp_path / "a" / "prior.json").read_text())
+    del meta["config"]["activation"]
+    (tmp_path / "a" / "prior.json").write_text(json.dumps(meta))
+    train_prior(data, tmp_path / "a", config, steps=25, **kw)
+    assert load_prior(tmp_path / "a").step == 25
     with pytest.raises(InputError, match="no prior.json"):
         load_prior(tmp_path / "missing")
