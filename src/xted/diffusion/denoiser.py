@@ -73,7 +73,6 @@ class DenoiserConfig:
     horizon: int = 20
     dtype: str = "float32"
     architecture: str = "xted"
-    activation: str = "gelu"
 
     @property
     def streams(self) -> tuple[str, ...]:
@@ -128,23 +127,17 @@ class Modulation(nn.Module):
         return jnp.split(z, self.chunks, axis=-1)
 
 
-# The attention blocks' MLP activation (``DenoiserConfig.activation``). GELU (tanh form) is the
-# paper's; on XLA:CPU its tanh is one of the largest non-matmul costs of a small model's step.
-ACTIVATIONS = {"gelu": nn.gelu, "relu": nn.relu, "silu": nn.silu}
-
-
 class Mlp(nn.Module):
-    """Dense-activation-Dense (:data:`ACTIVATIONS`, GELU by default); the last layer optionally zero-initialised."""
+    """Dense-GELU-Dense; the last layer optionally zero-initialised."""
 
     hidden: int
     out: int
     zero_out: bool = False
     dtype: jnp.dtype = jnp.float32
-    activation: str = "gelu"
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        x = ACTIVATIONS[self.activation](nn.Dense(self.hidden, dtype=self.dtype)(x))
+        x = nn.gelu(nn.Dense(self.hidden, dtype=self.dtype)(x))
         init = nn.initializers.zeros if self.zero_out else nn.initializers.lecun_normal()
         return nn.Dense(self.out, kernel_init=init, dtype=self.dtype)(x)
 
@@ -156,7 +149,6 @@ class SelfAttentionBlock(nn.Module):
     heads: int
     mlp_ratio: int
     dtype: jnp.dtype = jnp.float32
-    activation: str = "gelu"
 
     @nn.compact
     def __call__(self, x: jnp.ndarray, e: jnp.ndarray, mask: jnp.ndarray | None = None) -> jnp.ndarray:
@@ -167,8 +159,7 @@ class SelfAttentionBlock(nn.Module):
         )
         x = x + gate[:, None] * attention(h, mask=mask)
         h = _modulate(_layer_norm(x, self.dtype), shift2, scale2)
-        return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype,
-                                        activation=self.activation)(h)
+        return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype)(h)
 
 
 class CrossAttentionBlock(nn.Module):
@@ -183,7 +174,6 @@ class CrossAttentionBlock(nn.Module):
     heads: int
     mlp_ratio: int
     dtype: jnp.dtype = jnp.float32
-    activation: str = "gelu"
 
     @nn.compact
     def __call__(self, x: jnp.ndarray, others: Sequence[jnp.ndarray], e: jnp.ndarray,
@@ -201,8 +191,7 @@ class CrossAttentionBlock(nn.Module):
         )
         x = x + gate[:, None] * attention(q, kv, mask=mask)
         h = _modulate(_layer_norm(x, self.dtype), shift2, scale2)
-        return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype,
-                                        activation=self.activation)(h)
+        return x + gate2[:, None] * Mlp(self.width * self.mlp_ratio, self.width, dtype=self.dtype)(h)
 
 
 class Encoder(nn.Module):
@@ -310,8 +299,7 @@ def _self_blocks(cfg: DenoiserConfig, name: str, x: jnp.ndarray, e: jnp.ndarray,
                  mask: jnp.ndarray | None, dtype: jnp.dtype) -> jnp.ndarray:
     width = x.shape[-1]
     for i in range(count):
-        x = SelfAttentionBlock(width, math.gcd(cfg.num_heads, width), cfg.mlp_ratio, dtype, cfg.activation,
-                               name=f"{name}_self_{i}")(
+        x = SelfAttentionBlock(width, math.gcd(cfg.num_heads, width), cfg.mlp_ratio, dtype, name=f"{name}_self_{i}")(
             x, e, mask
         )
     return x
@@ -328,7 +316,7 @@ def _streams(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray
     crossed = dict(h)
     for s, attended in cfg.cross_wiring:
         mask = _causal_mask(times, jnp.tile(times, len(attended))) if causal else None
-        block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, cfg.activation, name=f"{s}_cross")
+        block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, name=f"{s}_cross")
         crossed[s] = block(h[s], [h[a] for a in attended], e, mask)
     return {s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(crossed[s]) for s in cfg.streams}
 

@@ -36,7 +36,7 @@ from tqdm.auto import tqdm
 from xted.atomic import atomic_path
 from xted.data import Dataset, Normalizer
 from xted.data.windows import window_index
-from xted.diffusion.denoiser import ACTIVATIONS, ARCHITECTURES, Denoiser, DenoiserConfig, apply_inverse, init_params
+from xted.diffusion.denoiser import ARCHITECTURES, Denoiser, DenoiserConfig, apply_inverse, init_params
 from xted.diffusion.schedule import Schedule, cosine_schedule, q_sample
 from xted.errors import InputError
 
@@ -85,7 +85,6 @@ class PriorConfig(DenoiserConfig):
             (self.loss_weighting in LOSS_WEIGHTS, f"loss_weighting must be one of {sorted(LOSS_WEIGHTS)}"),
             (self.architecture in ARCHITECTURES,
              f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
-            (self.activation in ACTIVATIONS, f"activation must be one of {list(ACTIVATIONS)}, got {self.activation!r}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
         ]
         for ok, message in checks:
