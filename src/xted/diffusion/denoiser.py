@@ -404,6 +404,10 @@ UNET_KERNEL = 5
 UNET_GROUPS = 8
 
 
+def _mish(x: jnp.ndarray) -> jnp.ndarray:
+    return x * jnp.tanh(nn.softplus(x))
+
+
 class ConvNormMish(nn.Module):
     """Conv1d (``UNET_KERNEL`` wide, same length) -> GroupNorm -> Mish."""
 
@@ -414,7 +418,7 @@ class ConvNormMish(nn.Module):
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
         x = nn.Conv(self.channels, (UNET_KERNEL,), padding="SAME", dtype=self.dtype)(x)
         x = nn.GroupNorm(math.gcd(UNET_GROUPS, self.channels), dtype=self.dtype)(x)
-        return x * jnp.tanh(nn.softplus(x))
+        return _mish(x)
 
 
 class ResidualTemporalBlock(nn.Module):
@@ -427,7 +431,7 @@ class ResidualTemporalBlock(nn.Module):
     @nn.compact
     def __call__(self, x: jnp.ndarray, e: jnp.ndarray) -> jnp.ndarray:
         h = ConvNormMish(self.channels, self.dtype)(x)
-        h = h + nn.Dense(self.channels, dtype=self.dtype)(e * jnp.tanh(nn.softplus(e)))[:, None]
+        h = h + nn.Dense(self.channels, dtype=self.dtype)(_mish(e))[:, None]
         h = ConvNormMish(self.channels, self.dtype)(h)
         skip = x if x.shape[-1] == self.channels else nn.Conv(self.channels, (1,), dtype=self.dtype)(x)
         return h + skip
