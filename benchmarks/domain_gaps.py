@@ -15,14 +15,14 @@ import argparse
 from xted.data import load
 from xted.data.build import policies_dir
 from xted.envs import PAPER_GAPS, parse_domain
-from xted.envs.dynamics import dynamics_error
+from xted.envs.dynamics import dataset_dynamics_error
 from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import GaussianActor
 
 
 def mae(domain, name: str) -> float:
     data = load(name)
-    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived()).mae
+    return dataset_dynamics_error(domain, data).mae
 
 
 def greedy_return(policy_name: str, domain, episodes: int) -> float:

@@ -28,7 +28,7 @@ from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import load_prior, split_heldout
 from xted.envs import parse_domain
-from xted.envs.dynamics import dynamics_error
+from xted.envs.dynamics import dataset_dynamics_error, dynamics_error
 from xted.envs.make import forward_velocity_index
 
 
@@ -53,7 +53,7 @@ def main() -> None:
     proxy = fit_proxy(train, ProxyConfig(seed=args.seed))
 
     def sim(data) -> float:
-        return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived()).mae
+        return dataset_dynamics_error(domain, data).mae
 
     def proxy_resolution(data) -> float:
         return dynamics_error(domain, data.observations, data.actions, proxy.predict(data.observations, data.actions)).mae

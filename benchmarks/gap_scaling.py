@@ -21,7 +21,7 @@ from xted.data.build import policies_dir
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import load_prior
 from xted.envs import parse_domain
-from xted.envs.dynamics import dynamics_error
+from xted.envs.dynamics import dataset_dynamics_error
 from xted.envs.make import forward_velocity_index
 from xted.rl.collect import collect
 from xted.rl.policy_io import GaussianActor
@@ -45,7 +45,7 @@ def main() -> None:
     forward = forward_velocity_index(target)
 
     def sim(data: Dataset) -> float:
-        return dynamics_error(target, data.observations, data.actions, data.next_observations_or_derived()).mae
+        return dataset_dynamics_error(target, data).mae
 
     print("| gap | kappa | sim MAE source -> edited (ratio) | fwd-velocity corr matched / mismatched |")
     print("|---|---|---|---|")

@@ -20,11 +20,11 @@ from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import PriorConfig, load_prior, preset, split_heldout, train_prior
 from xted.envs import parse_domain
-from xted.envs.dynamics import dynamics_error
+from xted.envs.dynamics import dataset_dynamics_error
 
 
 def mae(domain, data) -> float:
-    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived()).mae
+    return dataset_dynamics_error(domain, data).mae
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ import numpy as np
 from xted.analysis import ProxyConfig, fit_proxy
 from xted.data import load
 from xted.envs import parse_domain
-from xted.envs.dynamics import dynamics_error
+from xted.envs.dynamics import dataset_dynamics_error, dynamics_error
 
 
 def main() -> None:
@@ -39,7 +39,7 @@ def main() -> None:
     heldout = data.select_episodes(np.arange(args.heldout_episodes))
     rest = data.select_episodes(np.arange(args.heldout_episodes, data.num_episodes))
     sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
-    gaps = {f"{gap}_source_gap": dynamics_error(domain, d.observations, d.actions, d.next_observations_or_derived()).mae
+    gaps = {f"{gap}_source_gap": dataset_dynamics_error(domain, d).mae
             for gap, d in sources.items()}
 
     def resolution(proxy, d) -> float:

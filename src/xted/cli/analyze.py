@@ -21,13 +21,13 @@ def dynamics(
 ) -> None:
     """Replay every transition (s, a, s') in the domain's simulator; report MAE and MSE."""
     from xted.data import load
-    from xted.envs.dynamics import dynamics_error
+    from xted.envs.dynamics import dataset_dynamics_error
 
     domain = parse_domain(env, gap)
     results = []
     for name in datasets:
         data = load(name)
-        error = dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived())
+        error = dataset_dynamics_error(domain, data)
         results.append({"path": name, **error.summary()})
     if as_json:
         print(json.dumps({"env": env, "domain": domain.name, "datasets": results}))

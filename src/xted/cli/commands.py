@@ -89,7 +89,7 @@ def demo(
     from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.training import PriorConfig, load_prior, split_heldout, train_prior
     from xted.envs import PAPER_GAPS, parse_domain
-    from xted.envs.dynamics import dynamics_error
+    from xted.envs.dynamics import dataset_dynamics_error
     from xted.envs.make import forward_velocity_index
 
     if proxy_steps < 0:
@@ -108,8 +108,9 @@ def demo(
     edited, report = edit_dataset(prior, source, EditConfig(seed=seed))
     formats.save(edited, edited_path)
     domain = parse_domain("halfcheetah")
-    rows = [(name, dynamics_error(domain, d.observations, d.actions, d.next_observations_or_derived()))
-            for name, d in (("target (medium-replay)", target), (f"source ({PAPER_GAPS['halfcheetah'][gap][gap]:g}x {gap})", source),
+    factor = PAPER_GAPS["halfcheetah"][gap][gap]
+    rows = [(name, dataset_dynamics_error(domain, d))
+            for name, d in (("target (medium-replay)", target), (f"source ({factor:g}x {gap})", source),
                             ("edited source", edited))]
     typer.echo(f"prior: {prior.path} (step {prior.step}); edited {report['transitions']} transitions "
                f"in {report['seconds']:.1f} s -> {edited_path}")

@@ -10,6 +10,7 @@ and is excluded (and counted).
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -17,6 +18,9 @@ import numpy as np
 from xted.envs.domains import Domain
 from xted.envs.make import observation_velocity_clip, simulator
 from xted.errors import InputError
+
+if TYPE_CHECKING:
+    from xted.data import Dataset
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,3 +105,8 @@ def dynamics_error(
         keep = np.all(np.abs(velocities) < clip - 1e-6, axis=1)
     predicted = _replay(model, frame_skip, domain, observations[keep], np.asarray(actions)[keep])
     return DynamicsError.from_differences(predicted - next_observations[keep], excluded_clipped=int((~keep).sum()))
+
+
+def dataset_dynamics_error(domain: Domain, data: Dataset) -> DynamicsError:
+    """:func:`dynamics_error` of every transition of ``data`` (next observations stored or derived)."""
+    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived())
