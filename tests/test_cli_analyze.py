@@ -26,6 +26,7 @@ def test_dynamics_json_scores_target_zero_and_source_above(target_and_source, ca
     assert {"path", "n", "mae", "mse"} <= set(target)
     assert target["n"] == 300 and target["mae"] < 1e-6
     assert source["mae"] > 0.05
+    assert target["reward"]["n"] == 300 and target["reward"]["mae"] < 1e-6
 
 
 def test_dynamics_in_the_source_domain_flips(target_and_source, capsys):

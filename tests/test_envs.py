@@ -2,23 +2,32 @@ import numpy as np
 import pytest
 
 import xted.envs as envs
-from xted.envs.dynamics import dynamics_error
+from xted.data import Dataset
+from xted.envs.dynamics import dynamics_error, reward_error
 from xted.errors import InputError
 
 
-def rollout(domain, steps=300, seed=0):
+def rollout(domain, steps=300, seed=0, with_rewards=False):
     env = envs.make(domain)
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
     rows = []
     for _ in range(steps):
         action = rng.uniform(-0.3, 0.3, env.action_space.shape).astype(np.float32)
-        next_obs, _, terminated, truncated, _ = env.step(action)
-        rows.append((obs, action, next_obs))
+        next_obs, reward, terminated, truncated, _ = env.step(action)
+        rows.append((obs, action, next_obs, reward))
         obs = next_obs
         if terminated or truncated:
             obs, _ = env.reset()
-    return [np.array(x) for x in zip(*rows)]
+    arrays = [np.array(x) for x in zip(*rows)]
+    return arrays if with_rewards else arrays[:3]
+
+
+def as_dataset(obs, act, nxt, rewards):
+    timeouts = np.zeros(len(obs), bool)
+    timeouts[-1] = True
+    return Dataset(observations=obs, actions=act, rewards=rewards, terminals=np.zeros(len(obs), bool),
+                   timeouts=timeouts, next_observations=nxt)
 
 
 def test_parse_paper_and_parametric_gaps():
@@ -94,3 +103,22 @@ def test_dimension_mismatch_is_refused():
     domain = envs.parse_domain("halfcheetah")
     with pytest.raises(InputError, match="dims"):
         dynamics_error(domain, np.zeros((3, 11)), np.zeros((3, 6)), np.zeros((3, 11)))
+
+
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
+def test_recorded_rewards_replay_exactly_and_a_shift_shows_as_bias(env):
+    domain = envs.parse_domain(env)
+    obs, act, nxt, rewards = rollout(domain, steps=200, with_rewards=True)
+    exact = reward_error(domain, as_dataset(obs, act, nxt, rewards))
+    assert exact.n > 0 and exact.mae < 1e-6
+    shifted = reward_error(domain, as_dataset(obs, act, nxt, rewards - 0.5))
+    assert shifted.bias == pytest.approx(-0.5, abs=1e-6)
+    assert shifted.mae == pytest.approx(0.5, abs=1e-6)
+
+
+def test_source_rewards_differ_from_the_targets_where_the_morphology_does():
+    source = envs.parse_domain("halfcheetah", "thigh")
+    obs, act, nxt, rewards = rollout(source, steps=200, with_rewards=True)
+    data = as_dataset(obs, act, nxt, rewards)
+    assert reward_error(source, data).mae < 1e-6
+    assert reward_error(envs.parse_domain("halfcheetah"), data).mae > 1e-3

@@ -19,25 +19,27 @@ def dynamics(
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to replay in (default: the target domain)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """Replay every transition (s, a, s') in the domain's simulator; report MAE and MSE."""
+    """Replay every transition (s, a, s') in the domain's simulator: next-state MAE and MSE, and
+    how far the recorded rewards are from the domain's own (MAE, bias = recorded - replayed)."""
     from xted.data import load
-    from xted.envs.dynamics import dataset_dynamics_error
+    from xted.envs.dynamics import dataset_dynamics_error, reward_error
 
     domain = parse_domain(env, gap)
     results = []
     for name in datasets:
         data = load(name)
         error = dataset_dynamics_error(domain, data)
-        results.append({"path": name, **error.summary()})
+        results.append({"path": name, **error.summary(), "reward": reward_error(domain, data).summary()})
     if as_json:
         print(json.dumps({"env": env, "domain": domain.name, "datasets": results}))
         return
     print(f"simulator dynamics error in {domain.name}")
-    print(f"{'dataset':40s} {'n':>7s} {'excluded':>8s} {'MAE':>9s} {'MSE':>9s} {'MAE p50':>9s} {'MAE p90':>9s}")
+    print(f"{'dataset':40s} {'n':>7s} {'excluded':>8s} {'MAE':>9s} {'MSE':>9s} {'MAE p50':>9s} {'MAE p90':>9s} "
+          f"{'rew MAE':>9s} {'rew bias':>9s}")
     for row in results:
         q = row["mae_quantiles"]
         print(f"{row['path'][-40:]:40s} {row['n']:7d} {row['excluded_clipped']:8d} {row['mae']:9.4f} "
-              f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f}")
+              f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f} {row['reward']['mae']:9.4f} {row['reward']['bias']:9.4f}")
 
 
 @app.command("proxy")
