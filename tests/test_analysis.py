@@ -3,13 +3,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from xted.analysis import ProxyConfig, content_similarity, fit_proxy
+from xted.analysis import ProxyConfig, content_similarity, fit_proxy, fit_reward_proxy, relabel_rewards
 from xted.data import Dataset
 from xted.errors import InputError
 
 
 def linear_system(episodes: int, length: int, seed: int) -> Dataset:
-    """s' = s + 0.1 (A s + B a): a smooth system an MLP can learn from a few hundred steps."""
+    """s' = s + 0.1 (A s + B a), reward (s'_0 - s_0) / 0.1 - 0.1 |a|^2 (locomotion-like): a smooth
+    system an MLP can learn from a few hundred steps."""
     rng = np.random.default_rng(seed)
     a_matrix = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.5], [0.2, 0.0, -0.3]])
     b_matrix = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
@@ -24,8 +25,9 @@ def linear_system(episodes: int, length: int, seed: int) -> Dataset:
     n = episodes * length
     timeouts = np.zeros(n, bool)
     timeouts[length - 1 :: length] = True
-    return Dataset(np.array(observations, np.float32), np.array(actions, np.float32), np.zeros(n, np.float32),
-                   np.zeros(n, bool), timeouts, np.array(nexts, np.float32))
+    observations, actions, nexts = (np.array(x, np.float32) for x in (observations, actions, nexts))
+    rewards = (nexts[:, 0] - observations[:, 0]) / 0.1 - 0.1 * np.sum(actions**2, axis=1)
+    return Dataset(observations, actions, rewards, np.zeros(n, bool), timeouts, nexts)
 
 
 def naive_error(data: Dataset) -> float:
@@ -63,6 +65,28 @@ def test_proxy_is_deterministic_per_seed(fitted):
 def test_proxy_refuses_other_dims(fitted):
     with pytest.raises(InputError, match="3-d observations and 2-d actions"):
         fitted.predict(np.zeros((2, 4)), np.zeros((2, 2)))
+
+
+@pytest.fixture(scope="module")
+def reward_proxy():
+    config = ProxyConfig(hidden=(64, 64), steps=1500, seed=3)
+    return fit_reward_proxy(linear_system(20, 50, seed=0), config, progress=False)
+
+
+def test_reward_proxy_relabels_wrong_rewards_back_to_the_targets(reward_proxy):
+    heldout = linear_system(4, 50, seed=1)
+    wrong = dataclasses.replace(heldout, rewards=np.zeros_like(heldout.rewards))
+    relabelled = relabel_rewards(wrong, reward_proxy)
+    scale = np.abs(heldout.rewards - heldout.rewards.mean()).mean()
+    assert np.abs(relabelled.rewards - heldout.rewards).mean() < 0.1 * scale
+    assert not wrong.rewards.any()  # the input is not modified
+    np.testing.assert_array_equal(relabelled.observations, heldout.observations)
+    assert "reward proxy" in relabelled.metadata["rewards"]
+
+
+def test_reward_proxy_refuses_other_dims(reward_proxy):
+    with pytest.raises(InputError, match="3-d observations, 2-d actions and 3-d next observations"):
+        reward_proxy.predict(np.zeros((2, 3)), np.zeros((2, 1)), np.zeros((2, 3)))
 
 
 def test_content_of_an_unchanged_edit_is_perfect(make_dataset):

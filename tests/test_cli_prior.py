@@ -46,6 +46,28 @@ def test_edit_cli_writes_the_named_format(files, capsys):
     assert not np.array_equal(edited.observations, source.observations)
 
 
+def test_edit_cli_relabels_rewards_with_a_target_reward_proxy(files, capsys):
+    edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3"]
+    assert main([*edit, "--out", str(files / "plain.npz")]) == 0
+    out = files / "relabelled.npz"
+    assert main([*edit, "--out", str(out), "--relabel-rewards", str(files / "target.npz"),
+                 "--reward-proxy-steps", "200"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report["rewards_relabelled_from"] == str(files / "target.npz")
+    relabelled, plain = load(out), load(files / "plain.npz")
+    np.testing.assert_array_equal(relabelled.observations, plain.observations)
+    assert not np.allclose(relabelled.rewards, plain.rewards)
+
+
+def test_edit_cli_refuses_reward_data_of_other_dims(files, capsys):
+    save(build_dataset(lengths=(10,), obs_dim=4, act_dim=2, seed=2), files / "wide_rewards.npz")
+    out = files / "never.npz"
+    rc = main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--out", str(out),
+               "--relabel-rewards", str(files / "wide_rewards.npz")])
+    assert rc == 2 and "--relabel-rewards" in capsys.readouterr().err
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("args,needle", [
     (["--kappa", "1.5"], "kappa"),
     (["--sampler", "euler"], "sampler"),

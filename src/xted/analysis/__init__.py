@@ -1,6 +1,9 @@
-"""Measuring edits: a learned dynamics proxy (the paper's measure) and task-content similarity."""
+"""Measuring edits: learned models of the target (the paper's dynamics proxy, a reward proxy) and
+task-content similarity."""
 
 from xted.analysis.content import content_similarity
-from xted.analysis.proxy import DynamicsProxy, ProxyConfig, fit_proxy
+from xted.analysis.proxy import (DynamicsProxy, ProxyConfig, RewardProxy, fit_proxy, fit_reward_proxy,
+                                 relabel_rewards)
 
-__all__ = ["DynamicsProxy", "ProxyConfig", "content_similarity", "fit_proxy"]
+__all__ = ["DynamicsProxy", "ProxyConfig", "RewardProxy", "content_similarity", "fit_proxy", "fit_reward_proxy",
+           "relabel_rewards"]

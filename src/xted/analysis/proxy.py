@@ -1,14 +1,22 @@
-"""A learned dynamics proxy: the paper's way of measuring editing without a simulator.
+"""Learned models of the target domain: the paper's dynamics proxy, and a reward proxy.
 
-An MLP ``(s, a) -> s' - s`` fitted to target transitions (inputs and outputs standardised, MSE,
-Adam with cosine decay). Its error on a dataset, ``|proxy(s, a) - s'|``, is the paper's "dynamics
-error" (its §5 figure): the measure a user has when the target is a real robot. With a simulator,
-:func:`xted.envs.dynamics.dynamics_error` is the ground truth; the proxy's own simulator error on
-held-out target data says how much a model learned from this target data can resolve at all.
+Each is an MLP fitted to target transitions (inputs and outputs standardised, MSE, Adam with
+cosine decay).
+
+- The dynamics proxy ``(s, a) -> s' - s``: its error on a dataset, ``|proxy(s, a) - s'|``, is the
+  paper's "dynamics error" (its §5 figure), the measure a user has when the target is a real
+  robot. With a simulator, :func:`xted.envs.dynamics.dynamics_error` is the ground truth; the
+  proxy's own simulator error on held-out target data says how much a model learned from this
+  target data can resolve at all.
+- The reward proxy ``(s, a, s') -> r``: :func:`relabel_rewards` gives edited transitions the
+  target's reward for what they now do. The prior's own reward stream regresses toward the
+  rewards it saw in the target data, which understates a source that moves faster than the
+  target ever did (measured in BENCHMARKS.md).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,40 +46,25 @@ class ProxyConfig:
             raise InputError(f"ProxyConfig: steps, batch_size, lr and hidden must be positive, got {self}")
 
 
-def _inputs(observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
-    return np.concatenate([observations, actions], axis=1).astype(np.float32)
-
-
 @dataclass(frozen=True)
-class DynamicsProxy:
-    """A fitted proxy: ``predict`` gives next observations, ``error`` the paper's dynamics error."""
+class FittedMLP:
+    """An MLP fitted to standardised inputs and outputs; called on raw inputs, gives raw outputs."""
 
     config: ProxyConfig
     params: Any
     input_mean: np.ndarray
     input_std: np.ndarray
-    delta_mean: np.ndarray
-    delta_std: np.ndarray
+    output_mean: np.ndarray
+    output_std: np.ndarray
 
     @property
-    def observation_dim(self) -> int:
-        return len(self.delta_mean)
+    def input_dim(self) -> int:
+        return len(self.input_mean)
 
-    def predict(self, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        observations = np.asarray(observations, np.float64)
-        expected = (self.observation_dim, len(self.input_mean) - self.observation_dim)
-        if observations.shape[1:] != expected[:1] or np.shape(actions)[1:] != expected[1:]:
-            raise InputError(
-                f"the proxy takes {expected[0]}-d observations and {expected[1]}-d actions, "
-                f"got {observations.shape[1:]} and {np.shape(actions)[1:]}"
-            )
-        x = (_inputs(observations, actions) - self.input_mean) / self.input_std
-        delta = np.asarray(_apply(self.params, self.config.hidden, jnp.asarray(x), self.observation_dim), np.float64)
-        return observations + delta * self.delta_std + self.delta_mean
-
-    def error(self, data: Dataset) -> DynamicsError:
-        predicted = self.predict(data.observations, data.actions)
-        return DynamicsError.from_differences(predicted - data.next_observations_or_derived())
+    def __call__(self, inputs: np.ndarray) -> np.ndarray:
+        x = (np.asarray(inputs, np.float32) - self.input_mean) / self.input_std
+        y = np.asarray(_apply(self.params, self.config.hidden, jnp.asarray(x), len(self.output_mean)), np.float64)
+        return y * self.output_std + self.output_mean
 
 
 def _apply(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, out: int) -> jnp.ndarray:
@@ -79,20 +72,20 @@ def _apply(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, out: int) -> jn
 
 
 def proxy_loss(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, y: jnp.ndarray) -> jnp.ndarray:
-    """Mean squared error of the standardised state change."""
+    """Mean squared error of the standardised outputs."""
     return jnp.mean((_apply(params, hidden, x, y.shape[-1]) - y) ** 2)
 
 
-def fit_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> DynamicsProxy:
-    """Fit the proxy to ``target``'s transitions; the same seed gives the same proxy."""
-    if len(target) < 2:
-        raise InputError(f"the proxy needs at least 2 target transitions, got {len(target)}")
-    inputs = _inputs(target.observations, target.actions)
-    deltas = (target.next_observations_or_derived() - target.observations).astype(np.float32)
+def fit_mlp(inputs: np.ndarray, outputs: np.ndarray, config: ProxyConfig, progress: bool = True,
+            desc: str = "proxy") -> FittedMLP:
+    """Fit ``outputs [N, k]`` from ``inputs [N, d]``; the same seed gives the same model."""
+    if len(inputs) < 2:
+        raise InputError(f"a proxy needs at least 2 target transitions, got {len(inputs)}")
+    inputs, outputs = np.asarray(inputs, np.float32), np.asarray(outputs, np.float32)
     input_mean, input_std = inputs.mean(0), inputs.std(0) + 1e-6
-    delta_mean, delta_std = deltas.mean(0), deltas.std(0) + 1e-6
+    output_mean, output_std = outputs.mean(0), outputs.std(0) + 1e-6
     x = jnp.asarray((inputs - input_mean) / input_std)
-    y = jnp.asarray((deltas - delta_mean) / delta_std)
+    y = jnp.asarray((outputs - output_mean) / output_std)
 
     init_key, data_key = jax.random.split(jax.random.PRNGKey(config.seed))
     params = MLP(config.hidden, y.shape[1], activation=nn.silu).init(init_key, x[:1])
@@ -112,18 +105,73 @@ def fit_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bo
 
     keys = jax.random.split(data_key, config.steps)
     carry = (params, opt_state)
-    bar = tqdm(total=config.steps, disable=not progress, unit="step", desc="proxy")
+    bar = tqdm(total=config.steps, disable=not progress, unit="step", desc=desc)
     for start in range(0, config.steps, 1000):
         carry, losses = chunk(carry, keys[start : start + 1000])
         bar.update(len(losses))
         bar.set_postfix(loss=f"{float(losses[-1]):.4f}")
     bar.close()
-    return DynamicsProxy(
-        config=config,
-        params=jax.device_get(carry[0]),
-        input_mean=input_mean,
-        input_std=input_std,
-        delta_mean=delta_mean,
-        delta_std=delta_std,
-    )
+    return FittedMLP(config=config, params=jax.device_get(carry[0]), input_mean=input_mean, input_std=input_std,
+                     output_mean=output_mean, output_std=output_std)
 
+
+def _check_dims(kind: str, expected: tuple[int, ...], given: tuple[int, ...]) -> None:
+    if expected != given:
+        parts = [f"{d}-d {name}" for d, name in zip(expected, ("observations", "actions", "next observations"))]
+        raise InputError(f"the {kind} takes {', '.join(parts[:-1])} and {parts[-1]}; got dims {given}")
+
+
+@dataclass(frozen=True)
+class DynamicsProxy:
+    """A fitted dynamics proxy: ``predict`` gives next observations, ``error`` the paper's dynamics error."""
+
+    model: FittedMLP
+
+    @property
+    def observation_dim(self) -> int:
+        return len(self.model.output_mean)
+
+    def predict(self, observations: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        observations = np.asarray(observations, np.float64)
+        obs_dim = self.observation_dim
+        _check_dims("proxy", (obs_dim, self.model.input_dim - obs_dim), (observations.shape[1], np.shape(actions)[1]))
+        return observations + self.model(np.concatenate([observations, actions], axis=1))
+
+    def error(self, data: Dataset) -> DynamicsError:
+        predicted = self.predict(data.observations, data.actions)
+        return DynamicsError.from_differences(predicted - data.next_observations_or_derived())
+
+
+def fit_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> DynamicsProxy:
+    """Fit the dynamics proxy to ``target``'s transitions; the same seed gives the same proxy."""
+    inputs = np.concatenate([target.observations, target.actions], axis=1)
+    deltas = target.next_observations_or_derived() - target.observations
+    return DynamicsProxy(fit_mlp(inputs, deltas, config, progress))
+
+
+@dataclass(frozen=True)
+class RewardProxy:
+    """A fitted reward model of the target, ``r = g(s, a, s')``."""
+
+    model: FittedMLP
+    observation_dim: int
+
+    def predict(self, observations: np.ndarray, actions: np.ndarray, next_observations: np.ndarray) -> np.ndarray:
+        obs_dim = self.observation_dim
+        _check_dims("reward proxy", (obs_dim, self.model.input_dim - 2 * obs_dim, obs_dim),
+                    (np.shape(observations)[1], np.shape(actions)[1], np.shape(next_observations)[1]))
+        return self.model(np.concatenate([observations, actions, next_observations], axis=1))[:, 0]
+
+
+def fit_reward_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> RewardProxy:
+    """Fit the reward proxy to ``target``'s transitions; the same seed gives the same model."""
+    inputs = np.concatenate([target.observations, target.actions, target.next_observations_or_derived()], axis=1)
+    model = fit_mlp(inputs, target.rewards[:, None], config, progress, desc="reward proxy")
+    return RewardProxy(model, target.observation_dim)
+
+
+def relabel_rewards(data: Dataset, proxy: RewardProxy) -> Dataset:
+    """``data`` (a copy) with every reward given by ``proxy`` from its ``(s, a, s')``."""
+    rewards = proxy.predict(data.observations, data.actions, data.next_observations_or_derived())
+    metadata = {**data.metadata, "rewards": "relabelled by a reward proxy fitted to the target"}
+    return dataclasses.replace(data, rewards=rewards.astype(data.rewards.dtype), metadata=metadata)

@@ -48,9 +48,14 @@ def edit(
     sampler: str = typer.Option("ddpm", "--sampler", help="ddpm or ddim."),
     sampler_steps: Optional[int] = typer.Option(None, "--sampler-steps", help="DDIM steps (default k)."),
     seed: int = typer.Option(0, "--seed"),
+    relabel_rewards_from: Optional[str] = typer.Option(
+        None, "--relabel-rewards",
+        help="Target dataset to fit a reward proxy r(s, a, s') to; it gives every edited transition its reward."),
+    reward_proxy_steps: int = typer.Option(20_000, "--reward-proxy-steps", help="Training steps of that proxy."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
+    from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
     from xted.data import formats, load
     from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.training import load_prior
@@ -60,7 +65,17 @@ def edit(
         raise InputError(f"output {out} is the source {source}; choose another output path")
     config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, guidance=guidance,
                         sampler=sampler, sampler_steps=sampler_steps, seed=seed)
-    edited, report = edit_dataset(load_prior(prior), load(source), config)
+    source_data = load(source)
+    reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
+    if reward_data is not None and (reward_data.observation_dim, reward_data.action_dim) != (
+            source_data.observation_dim, source_data.action_dim):
+        raise InputError(f"--relabel-rewards {relabel_rewards_from} has {reward_data.observation_dim}-d observations "
+                         f"and {reward_data.action_dim}-d actions; the source has {source_data.observation_dim} and "
+                         f"{source_data.action_dim}")
+    edited, report = edit_dataset(load_prior(prior), source_data, config)
+    if reward_data is not None:
+        edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps, seed=seed)))
+        report["rewards_relabelled_from"] = relabel_rewards_from
     formats.save(edited, out, overwrite=force)
     typer.echo(json.dumps({"out": out, **report}))
 
