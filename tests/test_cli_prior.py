@@ -122,6 +122,9 @@ def test_demo_on_shipped_data(tmp_path, capsys):
     maes = {line.split()[0]: float(line.split("MAE=")[1].split()[0]) for line in out.splitlines() if "MAE=" in line
             and line.startswith("  ")}
     assert maes["target"] < 1e-5 < maes["source"]
+    reward_maes = {line.split()[0]: float(line.split("reward MAE=")[1].split()[0]) for line in out.splitlines()
+                   if "reward MAE=" in line}
+    assert reward_maes["target"] < 1e-5 < reward_maes["edited"]
     assert "edited / source MAE" in out and "learned proxy" in out and "forward-velocity correlation" in out
     assert main(["demo", "--out", str(tmp_path / "bad"), "--proxy-steps", "-1"]) == 2
     assert main(["demo", "--out", str(tmp_path / "bad"), "--gap", "mass"]) == 2

@@ -98,13 +98,14 @@ def demo(
     The prior was trained on the shipped halfcheetah-medium-replay target; target, source and edited
     source are all replayed in the target simulator (the true one-step dynamics error), measured with
     the paper's learned dynamics proxy, and compared for task content (forward-velocity correlation).
+    The recorded rewards are replayed too: the prior edits them as well.
     ``--gap thigh`` edits the source whose gap is large enough for editing to lower that error."""
     from xted.analysis import ProxyConfig, content_similarity, fit_proxy
     from xted.data import formats, load, shipped
     from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.training import PriorConfig, load_prior, split_heldout, train_prior
     from xted.envs import PAPER_GAPS, parse_domain
-    from xted.envs.dynamics import dataset_dynamics_error
+    from xted.envs.dynamics import dataset_dynamics_error, reward_error
     from xted.envs.make import forward_velocity_index
 
     if proxy_steps < 0:
@@ -124,14 +125,15 @@ def demo(
     formats.save(edited, edited_path)
     domain = parse_domain("halfcheetah")
     factor = PAPER_GAPS["halfcheetah"][gap][gap]
-    rows = [(name, dataset_dynamics_error(domain, d))
+    rows = [(name, dataset_dynamics_error(domain, d), reward_error(domain, d))
             for name, d in (("target (medium-replay)", target), (f"source ({factor:g}x {gap})", source),
                             ("edited source", edited))]
     typer.echo(f"prior: {prior.path} (step {prior.step}); edited {report['transitions']} transitions "
                f"in {report['seconds']:.1f} s -> {edited_path}")
-    typer.echo("simulator dynamics error in the halfcheetah target domain:")
-    for name, error in rows:
-        typer.echo(f"  {name:24s} MAE={error.mae:.4f}  MSE={error.mse:.4f}  (n={error.n})")
+    typer.echo("simulator dynamics error in the halfcheetah target domain (next state; recorded reward):")
+    for name, error, rewards in rows:
+        typer.echo(f"  {name:24s} MAE={error.mae:.4f}  MSE={error.mse:.4f}  (n={error.n})  "
+                   f"reward MAE={rewards.mae:.3f} bias={rewards.bias:+.3f}")
     typer.echo(f"edited / source MAE: {rows[2][1].mae / rows[1][1].mae:.2f}")
     if proxy_steps:
         training_episodes = split_heldout(target, DEMO_HELDOUT_EPISODES)[0]
