@@ -162,15 +162,15 @@ def reward_error(domain: Domain, data: Dataset) -> RewardError:
     """Replay every transition of ``data`` in ``domain`` and compare its recorded reward with the domain's."""
     observations = np.asarray(data.observations, dtype=np.float64)
     keep = _exact_states(domain, simulator(domain)[0], observations, data.next_observations_or_derived())
+    n, excluded = int(keep.sum()), int((~keep).sum())
+    if n == 0:
+        return RewardError(n, excluded, *[float("nan")] * 5)
     recorded = np.asarray(data.rewards, dtype=np.float64)[keep]
     replayed = replayed_rewards(domain, observations[keep], np.asarray(data.actions)[keep])
     difference = recorded - replayed
-    both_vary = len(recorded) > 1 and recorded.std() > 0 and replayed.std() > 0
+    both_vary = n > 1 and recorded.std() > 0 and replayed.std() > 0
     return RewardError(
-        n=int(keep.sum()), excluded_clipped=int((~keep).sum()),
-        mae=float(np.abs(difference).mean()) if len(recorded) else float("nan"),
-        bias=float(difference.mean()) if len(recorded) else float("nan"),
+        n=n, excluded_clipped=excluded, mae=float(np.abs(difference).mean()), bias=float(difference.mean()),
         correlation=float(np.corrcoef(recorded, replayed)[0, 1]) if both_vary else float("nan"),
-        recorded_mean=float(recorded.mean()) if len(recorded) else float("nan"),
-        replayed_mean=float(replayed.mean()) if len(recorded) else float("nan"),
+        recorded_mean=float(recorded.mean()), replayed_mean=float(replayed.mean()),
     )
