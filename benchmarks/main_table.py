@@ -2,15 +2,16 @@
 
     python benchmarks/main_table.py --env halfcheetah --prior PRIOR --target halfcheetah-medium-replay \
         --out runs/main_table [--gaps thigh gravity friction] [--algos iql] [--steps 30000] \
-        [--seeds 0,1,2] [--kappa 0.5] [--edit FIELD=VALUE ...] [--relabel-rewards]
+        [--seeds 0,1,2] [--kappa 0.5] [--edit FIELD=VALUE ...] [--edited-rewards prior|proxy|simulator]
 
 For each gap the shipped 20k source is edited with the prior (as ``xted edit`` does), then each
 algorithm trains on Target, Target+Source and Target+Edited (as ``xted policy`` does; evaluated in
 the target env, normalised score of the last evaluation, mean and std over seeds). Next to the
 scores: each mixed-in dataset's simulator dynamics MAE in the target env, and its rewards' error
-against the target env's own (MAE and bias, recorded minus replayed). ``--relabel-rewards`` gives
-the edited transitions the rewards of a reward proxy fitted to the target (``xted edit
---relabel-rewards``).
+against the target env's own (MAE and bias, recorded minus replayed). The edited transitions keep
+the rewards the prior denoised (``--edited-rewards prior``, what ``xted edit`` gives), or get those
+of a reward proxy fitted to the target (``proxy``: ``xted edit --relabel-rewards``), or the target
+simulator's own (``simulator``: a diagnostic that no user without the target simulator has).
 
 Everything lands in ``--out`` (edited datasets, per-seed results), so an interrupted run resumes
 where it stopped. One ``--out`` holds one set of edit and training settings
@@ -20,6 +21,7 @@ where it stopped. One ``--out`` holds one set of edit and training settings
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -32,7 +34,7 @@ from xted.data import load, save
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import load_prior
 from xted.envs import parse_domain
-from xted.envs.dynamics import dataset_dynamics_error, reward_error
+from xted.envs.dynamics import dataset_dynamics_error, replayed_rewards, reward_error
 from xted.rl.offline_train import train_offline
 
 
@@ -61,18 +63,28 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=10_000)
     parser.add_argument("--kappa", type=float, default=0.5)
     parser.add_argument("--edit", nargs="*", default=[], help="EditConfig overrides, e.g. target_return=0.5")
-    parser.add_argument("--relabel-rewards", action="store_true", help="Rewards of edits from a target reward proxy.")
+    parser.add_argument("--edited-rewards", choices=["prior", "proxy", "simulator"], default="prior",
+                        help="Rewards of the edits: as denoised, from a target reward proxy, or the target simulator's.")
     args = parser.parse_args()
 
     seeds = [int(s) for s in args.seeds.split(",")]
     edit = EditConfig(**{**parse_overrides(EditConfig, args.edit), "kappa": args.kappa})
     check_settings(args.out, {"env": args.env, "prior": str(args.prior), "target": args.target,
                               "edit": edit.__dict__, "steps": args.steps, "seeds": seeds,
-                              "eval_every": args.eval_every, "relabel_rewards": args.relabel_rewards})
+                              "eval_every": args.eval_every, "edited_rewards": args.edited_rewards})
     domain = parse_domain(args.env)
     target = load(args.target)
     prior = load_prior(args.prior)
-    reward_proxy = fit_reward_proxy(target, ProxyConfig()) if args.relabel_rewards else None
+    reward_proxy = fit_reward_proxy(target, ProxyConfig()) if args.edited_rewards == "proxy" else None
+
+    def reward_edits(edited):
+        if args.edited_rewards == "proxy":
+            return relabel_rewards(edited, reward_proxy)
+        if args.edited_rewards == "simulator":
+            rewards = replayed_rewards(domain, edited.observations, edited.actions)
+            return dataclasses.replace(edited, rewards=rewards.astype(edited.rewards.dtype),
+                                       metadata={**edited.metadata, "rewards": "the target simulator's"})
+        return edited
 
     mixes: dict[str, object] = {"target": None}
     for gap in args.gaps:
@@ -80,7 +92,7 @@ def main() -> None:
         edited_path = args.out / f"edited-{gap}.npz"
         if not edited_path.exists():
             edited, _ = edit_dataset(prior, mixes[f"source-{gap}"], edit)
-            save(edited if reward_proxy is None else relabel_rewards(edited, reward_proxy), edited_path)
+            save(reward_edits(edited), edited_path)
         mixes[f"edited-{gap}"] = load(edited_path)
 
     rows = []
@@ -99,13 +111,13 @@ def main() -> None:
             print(json.dumps(rows[-1]), flush=True)
 
     print(f"\n{args.env}, target {args.target}, {args.steps} steps, seeds {args.seeds}, kappa {args.kappa} {args.edit}"
-          f"{', rewards relabelled' if args.relabel_rewards else ''}")
+          f", rewards of the edits: {args.edited_rewards}")
     print("| algo | data | score (mean ± std, last eval) | best eval (mean) | mixed-in data in the target env: "
           "dynamics MAE | reward MAE (bias) |")
     print("|---|---|---|---|---|---|")
     for row in rows:
         data = "Target" if row["data"] == "target" else "Target + " + row["data"].replace("-", " (", 1) + ")"
-        measured = "| |" if np.isnan(row["mixed_in_sim_mae"]) else (
+        measured = "| | |" if np.isnan(row["mixed_in_sim_mae"]) else (
             f"| {row['mixed_in_sim_mae']:.3f} | {row['mixed_in_reward_mae']:.3f} ({row['mixed_in_reward_bias']:+.3f}) |")
         print(f"| {row['algo']} | {data} | {row['mean']:.1f} ± {row['std']:.1f} | {row['best']:.1f} {measured}")
 
