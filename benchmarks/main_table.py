@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 from pathlib import Path
 
@@ -50,6 +51,15 @@ def check_settings(out: Path, settings: dict) -> None:
         tmp.write_text(json.dumps(settings, indent=1))
 
 
+def replayed_in_target(domain, extra) -> dict:
+    """A mixed-in dataset's dynamics MAE and reward MAE and bias in the target simulator (NaN for none)."""
+    if extra is None:
+        return dict.fromkeys(("mixed_in_sim_mae", "mixed_in_reward_mae", "mixed_in_reward_bias"), float("nan"))
+    rewards = reward_error(domain, extra)
+    return {"mixed_in_sim_mae": dataset_dynamics_error(domain, extra).mae,
+            "mixed_in_reward_mae": rewards.mae, "mixed_in_reward_bias": rewards.bias}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", required=True)
@@ -75,11 +85,14 @@ def main() -> None:
     domain = parse_domain(args.env)
     target = load(args.target)
     prior = load_prior(args.prior)
-    reward_proxy = fit_reward_proxy(target, ProxyConfig()) if args.edited_rewards == "proxy" else None
+
+    @functools.cache
+    def target_reward_proxy():  # fitted once, and only if an edit still has to be made
+        return fit_reward_proxy(target, ProxyConfig())
 
     def reward_edits(edited):
         if args.edited_rewards == "proxy":
-            return relabel_rewards(edited, reward_proxy)
+            return relabel_rewards(edited, target_reward_proxy())
         if args.edited_rewards == "simulator":
             rewards = replayed_rewards(domain, edited.observations, edited.actions)
             return dataclasses.replace(edited, rewards=rewards.astype(edited.rewards.dtype),
@@ -95,19 +108,17 @@ def main() -> None:
             save(reward_edits(edited), edited_path)
         mixes[f"edited-{gap}"] = load(edited_path)
 
+    measured = {mix: replayed_in_target(domain, extra) for mix, extra in mixes.items()}
+
     rows = []
     for algo in args.algos:
         for mix, extra in mixes.items():
             results = train_offline(algo, target, [] if extra is None else [extra], domain, args.steps, seeds,
                                     eval_every=args.eval_every, out_dir=args.out / f"{algo}-{mix}")
             scores = [r["final_score"] for r in results]
-            sim = float("nan") if extra is None else dataset_dynamics_error(domain, extra).mae
-            rewards = None if extra is None else reward_error(domain, extra)
             rows.append({"algo": algo, "data": mix, "scores": scores, "mean": float(np.mean(scores)),
                          "std": float(np.std(scores)), "best": float(np.mean([r["best_score"] for r in results])),
-                         "mixed_in_sim_mae": sim,
-                         "mixed_in_reward_mae": float("nan") if rewards is None else rewards.mae,
-                         "mixed_in_reward_bias": float("nan") if rewards is None else rewards.bias})
+                         **measured[mix]})
             print(json.dumps(rows[-1]), flush=True)
 
     print(f"\n{args.env}, target {args.target}, {args.steps} steps, seeds {args.seeds}, kappa {args.kappa} {args.edit}"
