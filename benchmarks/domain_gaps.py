@@ -17,7 +17,7 @@ from xted.data.build import policies_dir
 from xted.envs import PAPER_GAPS, parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 from xted.rl.evaluation import evaluate
-from xted.rl.policy_io import GaussianActor
+from xted.rl.policy_io import Actor
 
 
 def mae(domain, name: str) -> float:
@@ -26,7 +26,7 @@ def mae(domain, name: str) -> float:
 
 
 def greedy_return(policy_name: str, domain, episodes: int) -> float:
-    actor = GaussianActor.load(policies_dir() / f"{policy_name}-expert.msgpack")
+    actor = Actor.load(policies_dir() / f"{policy_name}-expert.msgpack")
     return evaluate(actor.act, domain, episodes, seed=123)["return_mean"]
 
 

@@ -6,15 +6,15 @@ from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
 from xted.errors import InputError
 from xted.rl.sac import SACConfig
-from xted.rl.sac_train import SACRunConfig, train_sac
+from xted.rl.online import OnlineRunConfig, train_online
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     run = tmp_path_factory.mktemp("sac") / "halfcheetah"
-    config = SACRunConfig(total_steps=3000, start_steps=500, checkpoint_every=1000, eval_episodes=1,
+    config = OnlineRunConfig(total_steps=3000, start_steps=500, checkpoint_every=1000, eval_episodes=1,
                           sac=SACConfig(hidden=(32, 32), batch_size=64))
-    train_sac(parse_domain("halfcheetah"), run, config, progress=False)
+    train_online(parse_domain("halfcheetah"), run, config, progress=False)
     return run
 
 

@@ -24,7 +24,7 @@ app = typer.Typer(
 _SUBAPPS = [
     ("xted.cli.data", "app", "data"),
     ("xted.cli.analyze", "app", "analyze"),
-    ("xted.cli.sac", "app", "sac"),
+    ("xted.cli.online", "app", "online"),
 ]
 # (module, attribute) of modules that register top-level commands on ``app``.
 _COMMAND_MODULES = ["xted.cli.commands", "xted.cli.policy"]

@@ -4,7 +4,7 @@ Levels, as D4RL made them: ``random`` (uniform actions), ``medium`` (a SAC polic
 third of the best return its run reached), ``medium-replay`` (the replay buffer of that run up
 to the medium checkpoint), ``expert`` (the best checkpoint), ``medium-expert`` (medium and
 expert episodes, half each), and ``source`` (the best SAC policy trained in a gap domain,
-collected in that domain). Policies come from a SAC run folder (``xted sac train``) or from the
+collected in that domain). Policies come from a online run folder (``xted online train``) or from the
 checkpoints shipped with xted.
 """
 
@@ -24,8 +24,8 @@ from xted.data.shipped import assets_dir
 from xted.envs import Domain, normalized_score
 from xted.errors import InputError
 from xted.rl.collect import collect, uniform_policy
-from xted.rl.policy_io import GaussianActor
-from xted.rl.sac_train import actor_checkpoint, read_evals
+from xted.rl.policy_io import Actor
+from xted.rl.online import actor_checkpoint, read_evals
 
 LEVELS = ("random", "medium", "medium-replay", "expert", "medium-expert", "source")
 MEDIUM_FRACTION = 1.0 / 3.0
@@ -54,7 +54,7 @@ class BehaviourPolicies:
         folder = policies_dir()
         expert = folder / f"{domain.name}-expert.msgpack"
         if not expert.exists():
-            raise InputError(f"no shipped behaviour policy for {domain.name}; train one with `xted sac train` "
+            raise InputError(f"no shipped behaviour policy for {domain.name}; train one with `xted online train` "
                              f"and pass its folder with --run")
         medium = folder / f"{domain.name}-medium.msgpack"
         replay = folder / f"{domain.name}-medium-replay-buffer.npz"
@@ -85,7 +85,7 @@ def select_checkpoints(evals: list[dict]) -> tuple[int, int]:
 
 
 def _policy_fn(path: Path):
-    actor = GaussianActor.load(path)
+    actor = Actor.load(path)
     return actor, (lambda obs, rng: actor.act(obs, rng))
 
 
@@ -115,7 +115,7 @@ def _subset_episodes(arrays: dict[str, np.ndarray], transitions: int, seed: int)
 
 
 def _replay_prefix(replay: Path, medium: Path) -> dict[str, np.ndarray]:
-    step = GaussianActor.load(medium).meta["step"]
+    step = Actor.load(medium).meta["step"]
     with np.load(replay) as buffer:
         arrays = {k: buffer[k][:step] for k in buffer.files}
     # The buffer is cut where the medium checkpoint was taken, always at an episode end.

@@ -2,7 +2,7 @@
 
     python -m xted.data.ship [--runs runs/sac] [--transitions 20000] [--seed 0]
 
-From the SAC run folders ``RUNS/{domain}`` (``xted sac train``) it copies the behaviour policies
+From the online run folders ``RUNS/{domain}`` (``xted online train``) it copies the behaviour policies
 into ``xted/assets/policies`` (target: expert and medium; sources: expert), the replay buffer up
 to the medium checkpoint, then makes every shipped dataset with exactly the command a user would
 run (``xted data make ... --out``) and records each file in ``assets/datasets/manifest.json``.
@@ -24,8 +24,8 @@ from xted.data.build import BehaviourPolicies, build_dataset, policies_dir
 from xted.data.formats import save
 from xted.data.shipped import MANIFEST_NAME, assets_dir
 from xted.envs import PAPER_GAPS, parse_domain
-from xted.rl.policy_io import GaussianActor
-from xted.rl.sac_train import read_evals
+from xted.rl.policy_io import Actor
+from xted.rl.online import read_evals
 
 TARGET_LEVELS = ("medium", "medium-replay", "medium-expert")
 
@@ -53,16 +53,16 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
         if domain.is_target:
             roles["medium"] = chosen.medium
         for role, source in roles.items():
-            step = GaussianActor.load(source).meta["step"]
+            step = Actor.load(source).meta["step"]
             dest = folder / f"{domain.name}-{role}.msgpack"
             shutil.copyfile(source, dest)
             entries[dest.stem] = {**file_entry(dest, folder), "domain": domain.name, "role": role, "step": step,
                                   "eval_return": evals[step]["return_mean"],
                                   "eval_normalized_score": evals[step]["normalized_score"],
-                                  "trained_steps": int(max(evals)), "command": f"xted sac train --env {env}"
+                                  "trained_steps": int(max(evals)), "command": f"xted online train --env {env}"
                                   + (f" --gap {gap}" if gap else "") + f" --steps {int(max(evals))} --out RUN"}
         if domain.is_target:
-            step = GaussianActor.load(chosen.medium).meta["step"]
+            step = Actor.load(chosen.medium).meta["step"]
             dest = folder / f"{domain.name}-medium-replay-buffer.npz"
             with np.load(chosen.replay) as buffer, atomic_path(dest, suffix=".npz") as tmp:
                 np.savez_compressed(tmp, **{k: buffer[k][:step] for k in buffer.files})
@@ -73,7 +73,7 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--runs", type=Path, default=None, help="SAC run folders; default: keep the shipped policies")
+    parser.add_argument("--runs", type=Path, default=None, help="online run folders; default: keep the shipped policies")
     parser.add_argument("--envs", nargs="+", default=["halfcheetah", "walker2d"])
     parser.add_argument("--domains", nargs="+", default=["target", *sorted({g for gaps in PAPER_GAPS.values() for g in gaps})],
                         help="which of target and the paper's gaps to ship (default: all)")

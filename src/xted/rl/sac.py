@@ -99,9 +99,3 @@ def sac_update(state: SACState, batch, config: SACConfig):
     new_state = SACState(actor, critic, target, log_alpha, rng)
     return new_state, {**info, **actor_info, "alpha": jnp.exp(log_alpha.params["log_alpha"])}
 
-
-@jax.jit
-def sample_action(actor: TrainState, obs, rng):
-    mean, log_std = actor.apply_fn({"params": actor.params}, obs)
-    return sample_tanh_gaussian(rng, mean, log_std)[0]
-

@@ -5,6 +5,9 @@ TD3's twin critics with target policy smoothing (noise 0.2 clipped at 0.5) and a
 ``lambda = alpha / mean|Q1|`` (alpha 2.5); both targets move by ``tau`` on actor steps only.
 Learning rates default to the TD3+BC paper's 3e-4 for both networks; the xTED paper's table lists
 actor 1e-5 and critic 1e-3, available through ``actor_lr`` / ``critic_lr``.
+
+``behaviour_cloning=False`` is TD3 itself (Fujimoto et al. 2018, actor loss ``-Q1(s, pi(s))``), the
+online learner of :mod:`xted.rl.online`.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ class TD3BCConfig:
     noise_clip: float = 0.5
     policy_delay: int = 2
     batch_size: int = 256
+    behaviour_cloning: bool = True
 
 
 @flax.struct.dataclass
@@ -70,6 +74,8 @@ def critic_loss(critic_params, state: TD3BCState, batch, rng, config: TD3BCConfi
 def actor_loss(actor_params, state: TD3BCState, batch, config: TD3BCConfig):
     pi = state.actor.apply_fn({"params": actor_params}, batch["observations"])
     q = state.critic.apply_fn({"params": state.critic.params}, batch["observations"], pi)[0]
+    if not config.behaviour_cloning:
+        return -q.mean(), {"actor_loss": -q.mean(), "bc_loss": jnp.zeros(())}
     lmbda = config.alpha / jax.lax.stop_gradient(jnp.abs(q).mean())
     bc = ((pi - batch["actions"]) ** 2).mean()
     loss = -lmbda * q.mean() + bc

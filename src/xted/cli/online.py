@@ -1,4 +1,4 @@
-"""``xted sac``: train behaviour policies online in a domain (resumable)."""
+"""``xted online``: train behaviour policies online in a domain (SAC or TD3, resumable)."""
 
 from __future__ import annotations
 
@@ -10,24 +10,32 @@ import typer
 
 from xted.envs import parse_domain
 
-app = typer.Typer(help="Online SAC for behaviour policies and domain-gap measurements.", no_args_is_help=True)
+app = typer.Typer(help="Online RL (SAC, TD3) for behaviour policies and domain-gap measurements.",
+                  no_args_is_help=True)
 
 
 @app.command("train")
 def train(
     env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain gap to train in (default: target)."),
-    out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed."),
-    steps: int = typer.Option(300_000, "--steps", help="Total environment steps."),
-    checkpoint_every: int = typer.Option(10_000, "--checkpoint-every", help="Steps between checkpoints."),
+    out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed (same settings)."),
+    algo: str = typer.Option("sac", "--algo", help="sac or td3."),
+    steps: int = typer.Option(1_000_000, "--steps", help="Total environment steps (one update each)."),
+    checkpoint_every: int = typer.Option(10_000, "--checkpoint-every",
+                                         help="Steps between checkpoints with a greedy evaluation."),
     start_steps: int = typer.Option(5_000, "--start-steps", help="Uniform-random steps before learning."),
+    eval_episodes: int = typer.Option(10, "--eval-episodes"),
     seed: int = typer.Option(0, "--seed"),
 ) -> None:
-    """Train SAC in a domain; checkpoints, evaluations and the replay buffer go to --out."""
-    from xted.rl.sac_train import SACRunConfig, read_evals, train_sac
+    """Train in a domain; checkpoints, evaluations (evals.csv) and the replay buffer go to --out.
 
-    config = SACRunConfig(total_steps=steps, start_steps=start_steps, checkpoint_every=checkpoint_every, seed=seed)
-    train_sac(parse_domain(env, gap), out, config)
+    An interrupted run continues from its last checkpoint when started again with the same
+    settings (a larger --steps extends it)."""
+    from xted.rl.online import OnlineRunConfig, read_evals, train_online
+
+    config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
+                             checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed)
+    train_online(parse_domain(env, gap), out, config)
     last = read_evals(out)[-1]
     print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score")}}))
 
@@ -43,9 +51,9 @@ def evaluate_policy(
 ) -> None:
     """Greedy return of a policy checkpoint in a domain."""
     from xted.rl.evaluation import evaluate
-    from xted.rl.policy_io import GaussianActor
+    from xted.rl.policy_io import Actor
 
-    actor = GaussianActor.load(policy)
+    actor = Actor.load(policy)
     domain = parse_domain(env, gap)
     result = evaluate(actor.act, domain, episodes, seed)
     summary = {"policy": str(policy), "domain": domain.name, "trained_in": actor.meta.get("domain"),

@@ -1,0 +1,99 @@
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from xted.cli.main import main
+from xted.envs import parse_domain
+from xted.errors import InputError
+from xted.rl.online import OnlineRunConfig, actor_checkpoint, read_evals, train_online
+from xted.rl.policy_io import Actor
+from xted.rl.sac import SACConfig, init_sac, sac_update
+from xted.rl.td3bc import TD3BCConfig
+
+TINY = SACConfig(hidden=(32, 32), batch_size=64)
+TINY_TD3 = TD3BCConfig(hidden=(32, 32), batch_size=64, behaviour_cloning=False)
+
+
+def test_sac_update_fits_a_one_step_problem():
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(256, 3)).astype(np.float32)
+    actions = rng.uniform(-1, 1, (256, 2)).astype(np.float32)
+    batch = {"observations": obs, "actions": actions, "rewards": -np.sum(actions**2, axis=1),
+             "next_observations": obs, "terminals": np.ones(256, np.float32)}
+    state = init_sac(jax.random.PRNGKey(0), 3, 2, TINY)
+    losses = []
+    for _ in range(300):
+        state, info = sac_update(state, batch, TINY)
+        losses.append(float(info["critic_loss"]))
+    assert np.mean(losses[-20:]) < 0.2 * np.mean(losses[:20])
+
+
+def _params_equal(a, b):
+    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_online_run_resumes_to_the_same_policy(tmp_path, algo):
+    domain = parse_domain("halfcheetah")
+    base = dict(algo=algo, start_steps=500, checkpoint_every=1000, eval_episodes=1, block=64, sac=TINY, td3=TINY_TD3)
+    train_online(domain, tmp_path / "straight", OnlineRunConfig(total_steps=1500, **base), progress=False)
+    train_online(domain, tmp_path / "resumed", OnlineRunConfig(total_steps=1000, **base), progress=False)
+    train_online(domain, tmp_path / "resumed", OnlineRunConfig(total_steps=1500, **base), progress=False)
+    straight = Actor.load(actor_checkpoint(tmp_path / "straight", 1500))
+    resumed = Actor.load(actor_checkpoint(tmp_path / "resumed", 1500))
+    _params_equal(straight.params, resumed.params)
+    assert straight.kind == {"sac": "tanh_gaussian", "td3": "deterministic"}[algo]
+    evals = read_evals(tmp_path / "resumed")
+    assert [row["step"] for row in evals] == [1000, 1500]
+    assert evals[1]["cpu_seconds"] > evals[0]["cpu_seconds"] > 0
+    with np.load(tmp_path / "resumed" / "buffer.npz") as buffer:
+        assert buffer["timeouts"][999] and buffer["timeouts"][1499]
+        assert len(buffer["rewards"]) == 1500
+        assert np.all(buffer["next_observations"][:998] == buffer["observations"][1:999])
+
+
+def test_block_size_changes_only_when_the_actor_is_refreshed(tmp_path):
+    """Before learning starts the actor is never used: any block size gives the same buffer and
+    the same first updates' batches, so the same parameters after the first update."""
+    domain = parse_domain("halfcheetah")
+    base = dict(total_steps=1000, start_steps=1000, checkpoint_every=1000, eval_episodes=1, sac=TINY)
+    for block in (1, 50):
+        train_online(domain, tmp_path / str(block), OnlineRunConfig(block=block, **base), progress=False)
+    _params_equal(Actor.load(actor_checkpoint(tmp_path / "1", 1000)).params,
+                  Actor.load(actor_checkpoint(tmp_path / "50", 1000)).params)
+
+
+def test_resume_refuses_other_settings_and_a_shorter_run(tmp_path):
+    domain = parse_domain("halfcheetah")
+    config = OnlineRunConfig(total_steps=1000, start_steps=500, checkpoint_every=1000, eval_episodes=1, sac=TINY)
+    train_online(domain, tmp_path / "run", config, progress=False)
+    with pytest.raises(InputError, match="start_steps: 500 -> 400"):
+        train_online(domain, tmp_path / "run", OnlineRunConfig(total_steps=2000, start_steps=400, checkpoint_every=1000,
+                                                               eval_episodes=1, sac=TINY), progress=False)
+    with pytest.raises(InputError, match="domain"):
+        train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "run", config, progress=False)
+    with pytest.raises(InputError, match="beyond --steps 500"):
+        train_online(domain, tmp_path / "run", OnlineRunConfig(total_steps=500, start_steps=500, checkpoint_every=1000,
+                                                               eval_episodes=1, sac=TINY), progress=False)
+
+
+@pytest.mark.parametrize("flag", [["--steps", "0"], ["--checkpoint-every", "0"], ["--algo", "ppo"]])
+def test_cli_refuses_bad_settings(tmp_path, capsys, flag):
+    code = main(["online", "train", "--env", "halfcheetah", "--out", str(tmp_path / "run"), *flag])
+    assert code == 2
+    assert not (tmp_path / "run").exists()
+    assert "error" in capsys.readouterr().err
+
+
+def test_cli_trains_and_evaluates(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["online", "train", "--env", "halfcheetah", "--algo", "td3", "--out", str(out), "--steps", "600",
+                 "--start-steps", "500", "--checkpoint-every", "600", "--eval-episodes", "1"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["step"] == 600
+    assert main(["online", "evaluate", str(actor_checkpoint(out, 600)), "--env", "halfcheetah", "--episodes", "1",
+                 "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["domain"] == "halfcheetah"
