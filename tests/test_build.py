@@ -18,9 +18,10 @@ def tiny_run(tmp_path_factory):
     return run
 
 
-def test_select_checkpoints_picks_best_and_a_third():
-    evals = [{"step": s, "return_mean": r} for s, r in [(1, 100.0), (2, 1000.0), (3, 3000.0), (4, 2500.0)]]
-    assert select_checkpoints(evals) == (3, 2)
+def test_select_checkpoints_picks_best_and_half_of_it_before():
+    evals = [{"step": s, "return_mean": r} for s, r in [(1, 100.0), (2, 1000.0), (3, 1600.0), (4, 3000.0), (5, 2500.0),
+                                                          (6, 1500.0)]]
+    assert select_checkpoints(evals) == (4, 3)
 
 
 def test_policy_reference_names_shipped_policies_without_the_install_path(tmp_path):

@@ -88,6 +88,18 @@ def test_edit_cli_refuses_mismatched_dims(files, capsys):
     assert not (files / "x.npz").exists()
 
 
+@pytest.mark.parametrize("role", ["--source", "--relabel-rewards"])
+def test_edit_cli_never_overwrites_an_input(files, capsys, role):
+    save(load(files / "target.npz"), files / "input.npz")
+    before = (files / "input.npz").read_bytes()
+    inputs = {"--source": str(files / "source.hdf5"), "--relabel-rewards": str(files / "target.npz"),
+              role: str(files / "input.npz")}
+    rc = main(["edit", "--prior", str(files / "prior"), *[x for pair in inputs.items() for x in pair],
+               "--out", str(files / "input.npz"), "--force"])
+    assert rc == 2 and role in capsys.readouterr().err
+    assert (files / "input.npz").read_bytes() == before
+
+
 def test_train_refuses_unknown_fields(files, capsys):
     rc = main(["train", "--target", str(files / "target.npz"), "--out", str(files / "p2"), "--set", "widht=3"])
     assert rc == 2 and "widht" in capsys.readouterr().err

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import os
 import shutil
 import tempfile
@@ -27,11 +29,40 @@ def atomic_path(target: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     try:
         yield tmp_path
         if target.is_dir() and not target.is_symlink():
-            shutil.rmtree(target)
-        os.replace(tmp_path, target)
+            _swap_in_folder(tmp_path, target)
+        else:
+            os.replace(tmp_path, target)
     except BaseException:
         if tmp_path.is_dir():
             shutil.rmtree(tmp_path, ignore_errors=True)
         elif tmp_path.exists():
             tmp_path.unlink()
         raise
+
+
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths in one step (Linux ``renameat2(RENAME_EXCHANGE)``); False where unsupported."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError, TypeError):
+        return False
+    at_fdcwd = -100
+    return renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE) == 0
+
+
+def _swap_in_folder(new: Path, target: Path) -> None:
+    """Put folder ``new`` at ``target``, replacing the folder there, so that a crash at any point
+    leaves the old or the new folder in place (never neither), then remove the old one."""
+    if _exchange(new, target):
+        shutil.rmtree(new)
+        return
+    # Without an atomic exchange the old folder is moved aside first: a crash between the two
+    # renames leaves it at the hidden backup name, not deleted.
+    backup = new.with_name(new.name + ".old")
+    os.replace(target, backup)
+    os.replace(new, target)
+    shutil.rmtree(backup)

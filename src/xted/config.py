@@ -9,6 +9,8 @@ from typing import Any
 
 from xted.errors import InputError
 
+BOOLEAN_WORDS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
+
 
 def parse_overrides(config_type: type, pairs: list[str]) -> dict[str, Any]:
     """``["field=value", ...]`` -> typed overrides of a config dataclass's fields."""
@@ -24,8 +26,13 @@ def parse_overrides(config_type: type, pairs: list[str]) -> dict[str, Any]:
             overrides[name] = None
             continue
         kind = kinds[0]
+        if kind is bool:
+            if text.lower() not in BOOLEAN_WORDS:
+                raise InputError(f"--set {pair!r}: {text!r} is not a boolean; use one of {', '.join(BOOLEAN_WORDS)}")
+            overrides[name] = BOOLEAN_WORDS[text.lower()]
+            continue
         try:
-            overrides[name] = (text.lower() in ("1", "true", "yes")) if kind is bool else kind(text)
+            overrides[name] = kind(text)
         except ValueError:
             raise InputError(f"--set {pair!r}: {text!r} is not a {kind.__name__}") from None
     return overrides

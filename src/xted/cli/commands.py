@@ -61,8 +61,11 @@ def edit(
     from xted.diffusion.training import load_prior
 
     formats.check_writable(formats.target(out), overwrite=force)
-    if formats.locate(source).path.resolve() == formats.target(out).path.resolve():
-        raise InputError(f"output {out} is the source {source}; choose another output path")
+    out_path = formats.target(out).path.resolve()
+    for role, name in (("--source", source), ("--relabel-rewards", relabel_rewards_from)):
+        if name is not None and formats.locate(name).path.resolve() == out_path:
+            raise InputError(f"output {out} is the {role} input {name}; inputs are never overwritten, "
+                             f"choose another output path")
     config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, guidance=guidance,
                         sampler=sampler, sampler_steps=sampler_steps, seed=seed)
     source_data = load(source)

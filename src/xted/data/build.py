@@ -1,7 +1,7 @@
 """D4RL-style datasets made with our own behaviour policies (`xted data make`).
 
-Levels, as D4RL made them: ``random`` (uniform actions), ``medium`` (a SAC policy at about one
-third of the best return its run reached), ``medium-replay`` (the replay buffer of that run up
+Levels, as D4RL made them: ``random`` (uniform actions), ``medium`` (a policy at about half the
+best return its run reached; D4RL's halfcheetah medium is at 39% of its expert), ``medium-replay`` (the replay buffer of that run up
 to the medium checkpoint), ``expert`` (the best checkpoint), ``medium-expert`` (medium and
 expert episodes, half each), and ``source`` (the best SAC policy trained in a gap domain,
 collected in that domain). Policies come from a online run folder (``xted online train``) or from the
@@ -28,7 +28,7 @@ from xted.rl.policy_io import Actor
 from xted.rl.online import actor_checkpoint, read_evals
 
 LEVELS = ("random", "medium", "medium-replay", "expert", "medium-expert", "source")
-MEDIUM_FRACTION = 1.0 / 3.0
+MEDIUM_FRACTION = 0.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,7 +77,7 @@ def policy_reference(path: Path) -> str:
 
 def select_checkpoints(evals: list[dict]) -> tuple[int, int]:
     """(best step, medium step): medium is the checkpoint before the best whose evaluation
-    return is closest to a third of the best's."""
+    return is closest to ``MEDIUM_FRACTION`` of the best's."""
     best = max(evals, key=lambda row: row["return_mean"])
     before = [row for row in evals if row["step"] <= best["step"]]
     medium = min(before, key=lambda row: abs(row["return_mean"] - MEDIUM_FRACTION * best["return_mean"]))

@@ -53,14 +53,15 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
         if domain.is_target:
             roles["medium"] = chosen.medium
         for role, source in roles.items():
-            step = Actor.load(source).meta["step"]
+            meta = Actor.load(source).meta
+            step, algo = meta["step"], meta.get("algo", "sac")
             dest = folder / f"{domain.name}-{role}.msgpack"
             shutil.copyfile(source, dest)
             entries[dest.stem] = {**file_entry(dest, folder), "domain": domain.name, "role": role, "step": step,
                                   "eval_return": evals[step]["return_mean"],
                                   "eval_normalized_score": evals[step]["normalized_score"],
-                                  "trained_steps": int(max(evals)), "command": f"xted online train --env {env}"
-                                  + (f" --gap {gap}" if gap else "") + f" --steps {int(max(evals))} --out RUN"}
+                                  "trained_steps": int(max(evals)), "command": f"xted online train --env {env}" + (f" --gap {gap}" if gap else "")
+                                  + f" --algo {algo} --seed {meta['seed']} --steps {int(max(evals))} --out RUN"}
         if domain.is_target:
             step = Actor.load(chosen.medium).meta["step"]
             dest = folder / f"{domain.name}-medium-replay-buffer.npz"
