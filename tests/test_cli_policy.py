@@ -38,6 +38,11 @@ def test_policy_json_and_resume(halfcheetah, tmp_path, capsys, monkeypatch):
     assert main(args) == 0
     assert json.loads(capsys.readouterr().out)["scores"] == out["scores"]
     assert main([*args, "--steps", "30"]) == 2  # --out holds results of another run
+    # Same transition count, other data: refused too, not silently reused.
+    other = tmp_path / "other.npz"
+    save(build_dataset(parse_domain("halfcheetah"), "random", 300, None, seed=1, progress=False), other)
+    rc = main([str(other) if a == str(halfcheetah) else a for a in args])
+    assert rc == 2 and "data" in capsys.readouterr().err
 
 
 def test_dara_with_nested_overrides(halfcheetah, capsys):

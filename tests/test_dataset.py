@@ -172,3 +172,13 @@ def test_normalizer_serialise_round_trip(tiny_dataset, tmp_path):
     (tmp_path / "bad.json").write_text('{"mean": {}}')
     with pytest.raises(InputError, match="bad.json"):
         Normalizer.load(tmp_path / "bad.json")
+
+
+def test_fingerprint_follows_the_arrays_not_the_metadata(tiny_dataset):
+    same = Dataset(**_fields(tiny_dataset))
+    assert same.fingerprint() == tiny_dataset.fingerprint()
+    assert tiny_dataset.with_metadata(note="renamed").fingerprint() == tiny_dataset.fingerprint()
+    for name in ("observations", "rewards", "next_observations"):
+        fields = _fields(tiny_dataset)
+        fields[name][-1] += 1.0
+        assert Dataset(**fields).fingerprint() != tiny_dataset.fingerprint(), name

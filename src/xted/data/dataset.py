@@ -7,6 +7,7 @@ An episode ends at a step whose ``terminals`` (the environment terminated) or ``
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -151,6 +152,17 @@ class Dataset:
     def with_metadata(self, **updates: Any) -> Dataset:
         """A copy with ``metadata`` updated by ``updates``."""
         return dataclasses.replace(self, metadata={**self.metadata, **updates})
+
+    def fingerprint(self) -> str:
+        """SHA-256 of the transition arrays (not the metadata): equal exactly when the data is."""
+        digest = hashlib.sha256()
+        names = ("observations", "actions", "rewards", "terminals", "timeouts", "next_observations")
+        for name in names:
+            value = getattr(self, name)
+            if value is not None:
+                digest.update(name.encode())
+                digest.update(np.ascontiguousarray(value).tobytes())
+        return digest.hexdigest()
 
     def next_observations_or_derived(self) -> np.ndarray:
         """``next_observations`` if stored, else ``observations[t + 1]`` within each episode.

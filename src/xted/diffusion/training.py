@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import functools
-import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -315,13 +314,6 @@ def normalize_returns(raw: Any, return_range: tuple[float, float]) -> Any:
     return np.clip((np.asarray(raw, np.float64) - low) / max(high - low, 1e-8), 0.0, 1.0)
 
 
-def _fingerprint(dataset: Dataset) -> str:
-    digest = hashlib.sha256()
-    for name in ("observations", "actions", "rewards", "terminals", "timeouts"):
-        digest.update(np.ascontiguousarray(getattr(dataset, name)).tobytes())
-    return digest.hexdigest()
-
-
 # -------------------------------------------------------------------------------- train / load
 def _checkpoint_manager(out_dir: Path) -> ocp.CheckpointManager:
     options = ocp.CheckpointManagerOptions(max_to_keep=2, create=True)
@@ -402,7 +394,7 @@ def train_prior(
         "config": config.to_dict(),
         "normalizer": normalizer.to_dict(),
         "return_range": info.pop("return_range"),
-        "data": {"fingerprint": _fingerprint(target_dataset), "transitions": len(target_dataset), **info},
+        "data": {"fingerprint": target_dataset.fingerprint(), "transitions": len(target_dataset), **info},
     }
     _prepare_out_dir(out_dir, meta)
 

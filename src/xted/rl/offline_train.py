@@ -221,7 +221,8 @@ def train_offline(
     _check_inputs(target, sources, domain, steps, seeds, eval_every, eval_episodes, s4rl_noise, config)
     run = json.loads(json.dumps({
         "algo": algorithm_name(config), "config": dataclasses.asdict(config), "domain": domain.name, "steps": steps,
-        "transitions": len(target) + sum(len(s) for s in sources), "s4rl_noise": s4rl_noise,
+        "transitions": len(target) + sum(len(s) for s in sources),
+        "data": [dataset.fingerprint() for dataset in (target, *sources)], "s4rl_noise": s4rl_noise,
         "eval_every": eval_every, "eval_episodes": eval_episodes,
     }))
     done = {seed: _load_result(Path(out_dir), seed, run) for seed in seeds} if out_dir is not None else {}
