@@ -140,6 +140,15 @@ def test_reads_d4rl_layout(tmp_path):
     assert dataset.metadata == {"algorithm": "SAC", "iteration": 7}
 
 
+def test_reads_d4rl_file_attributes_as_metadata(tmp_path):
+    _write_d4rl(tmp_path / "d4rl.hdf5")
+    with h5py.File(tmp_path / "d4rl.hdf5", "a") as f:
+        f.attrs["env_name"] = "Walker2d-v5"
+        f.attrs["deprecated"] = True
+    dataset = load(tmp_path / "d4rl.hdf5")
+    assert dataset.metadata == {"algorithm": "SAC", "iteration": 7, "env_name": "Walker2d-v5", "deprecated": True}
+
+
 def test_reads_d4rl_without_optional_keys(tmp_path):
     _write_d4rl(tmp_path / "bare.h5", timeouts=False, next_observations=False, reward_column=True)
     dataset = load(tmp_path / "bare.h5")

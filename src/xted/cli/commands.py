@@ -53,12 +53,15 @@ def edit(
         help="Target dataset to fit a reward proxy r(s, a, s') to; it gives every edited transition its reward."),
     reward_proxy_steps: int = typer.Option(20_000, "--reward-proxy-steps", help="Training steps of that proxy."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
+    allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
+                                            help="Edit data whose recorded env differs from the prior's."),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
     from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
     from xted.data import formats, load
     from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.training import load_prior
+    from xted.envs import check_same_env, dataset_env
 
     formats.check_writable(formats.target(out), overwrite=force)
     out_path = formats.target(out).path.resolve()
@@ -75,7 +78,11 @@ def edit(
         raise InputError(f"--relabel-rewards {relabel_rewards_from} has {reward_data.observation_dim}-d observations "
                          f"and {reward_data.action_dim}-d actions; the source has {source_data.observation_dim} and "
                          f"{source_data.action_dim}")
-    edited, report = edit_dataset(load_prior(prior), source_data, config)
+    prior_model = load_prior(prior)
+    for role, name, data in (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data)):
+        if data is not None:
+            check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
+    edited, report = edit_dataset(prior_model, source_data, config)
     if reward_data is not None:
         edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps, seed=seed)))
         report["rewards_relabelled_from"] = relabel_rewards_from

@@ -67,16 +67,21 @@ def policy(
         [], "--set", help="Override a config field: FIELD=VALUE, hidden=256,256, iql.FIELD=VALUE (repeatable)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder of per-seed results; finished seeds are skipped."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
+                                            help="Train on data whose recorded env differs from --env."),
 ) -> None:
     """Train an offline policy per seed (all seeds at once) and report normalised scores in the target env."""
     from xted.data import load
-    from xted.envs import parse_domain
+    from xted.envs import check_same_env, dataset_env, parse_domain
     from xted.rl.offline_train import default_config, train_offline
 
     config = configure(default_config(algo), overrides)
     seed_list = parse_seeds(seeds)
     domain = parse_domain(env, gap)
-    results = train_offline(config, load(target), [load(s) for s in sources], domain, steps, seed_list,
+    target_data, source_data = load(target), [load(s) for s in sources]
+    for role, name, data in (("--target", target, target_data), *(("--source", n, d) for n, d in zip(sources, source_data))):
+        check_same_env(domain.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
+    results = train_offline(config, target_data, source_data, domain, steps, seed_list,
                             eval_every=eval_every, eval_episodes=eval_episodes, out_dir=out, s4rl_noise=s4rl_noise)
     scores = [r["final_score"] for r in results]
     summary = {"algo": algo, "env": env, "domain": domain.name, "seeds": seed_list, "steps": steps,

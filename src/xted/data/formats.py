@@ -300,14 +300,15 @@ def _hdf5_leaves(group: h5py.Group, prefix: str = "") -> Iterator[tuple[str, np.
 
 
 def _hdf5_metadata(file: h5py.File, path: Path) -> dict[str, Any]:
-    """Our JSON attribute, or else the scalar entries of D4RL's ``metadata`` group."""
+    """Our JSON attribute, or else the file's scalar attributes (D4RL's ``env_name``, ...) and the
+    scalar entries of D4RL's ``metadata`` group."""
     if "metadata" in file.attrs:
         return _json_object(file.attrs["metadata"], path)
+    metadata = {name: _python_scalar(value) for name, value in file.attrs.items() if np.ndim(value) == 0}
     group = file.get("metadata")
-    if not isinstance(group, h5py.Group):
-        return {}
-    scalars = {name: value for name, value in _hdf5_leaves(group) if np.ndim(value) == 0}
-    return {name: _python_scalar(value) for name, value in scalars.items()}
+    if isinstance(group, h5py.Group):
+        metadata.update({name: _python_scalar(value) for name, value in _hdf5_leaves(group) if np.ndim(value) == 0})
+    return metadata
 
 
 def _python_scalar(value: Any) -> Any:

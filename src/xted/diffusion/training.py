@@ -37,6 +37,7 @@ from xted.data import Dataset, Normalizer
 from xted.data.windows import window_index
 from xted.diffusion.denoiser import ARCHITECTURES, Denoiser, DenoiserConfig, apply_inverse, init_params
 from xted.diffusion.schedule import Schedule, cosine_schedule, q_sample
+from xted.envs.domains import dataset_env
 from xted.errors import InputError
 
 FORMAT = "xted-prior/1"
@@ -394,7 +395,8 @@ def train_prior(
         "config": config.to_dict(),
         "normalizer": normalizer.to_dict(),
         "return_range": info.pop("return_range"),
-        "data": {"fingerprint": target_dataset.fingerprint(), "transitions": len(target_dataset), **info},
+        "data": {"fingerprint": target_dataset.fingerprint(), "transitions": len(target_dataset),
+                 "env": dataset_env(target_dataset.metadata), **info},
     }
     _prepare_out_dir(out_dir, meta)
 
@@ -461,6 +463,7 @@ class Prior:
     return_range: tuple[float, float]
     step: int = 0
     path: str | None = None
+    env: str | None = None  # the env of the target data, where it said
 
     @property
     def model(self) -> Denoiser:
@@ -511,6 +514,7 @@ def load_prior(out_dir: str | Path) -> Prior:
         return_range=tuple(meta["return_range"]),
         step=step,
         path=str(out_dir.resolve()),
+        env=meta.get("data", {}).get("env"),
     )
 
 

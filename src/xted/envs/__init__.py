@@ -5,6 +5,8 @@ from xted.envs.domains import (
     PAPER_GAPS,
     REFERENCE_RETURNS,
     Domain,
+    check_same_env,
+    dataset_env,
     normalized_score,
     parse_domain,
 )
@@ -15,6 +17,8 @@ __all__ = [
     "PAPER_GAPS",
     "REFERENCE_RETURNS",
     "Domain",
+    "check_same_env",
+    "dataset_env",
     "make",
     "normalized_score",
     "parse_domain",

@@ -92,3 +92,24 @@ def normalized_score(env: str, episode_return):
     """D4RL-normalised score: 100 * (return - random) / (expert - random)."""
     low, high = REFERENCE_RETURNS[env]
     return 100.0 * (episode_return - low) / (high - low)
+
+
+ENV_METADATA_KEYS = ("env", "env_name", "env_id")  # ours, D4RL's file attribute, others'
+
+
+def dataset_env(metadata: dict) -> str | None:
+    """The env a dataset says it comes from: our name (``halfcheetah``) where the recorded one is
+    recognisable (``HalfCheetah-v5``, D4RL's ``halfcheetah-medium-v2``), else as recorded, else None."""
+    recorded = next((metadata[k] for k in ENV_METADATA_KEYS if isinstance(metadata.get(k), str) and metadata[k]), None)
+    if recorded is None:
+        return None
+    squashed = recorded.lower().replace("_", "").replace("-", "")
+    return next((name for name in ENV_IDS if squashed.startswith(name)), recorded)
+
+
+def check_same_env(expected: str | None, found: str | None, what: str, allow_mismatch: bool = False) -> None:
+    """Refuse data of another env: InputError naming both, unless either is unknown or allowed."""
+    if allow_mismatch or expected is None or found is None or expected == found:
+        return
+    raise InputError(f"{what} comes from env {found!r}, not {expected!r}; pass --allow-env-mismatch if that "
+                     f"is intended (the observation layouts must still match)")
