@@ -2,6 +2,8 @@
 
     python benchmarks/behaviour_curves.py RUN... --out docs/behaviour_curves.png [--at 100000]
 
+RUN is a run folder or a copy of its ``evals.csv`` (``benchmarks/results/behaviour/NAME.csv``).
+
 The PNG has greedy evaluation return against env steps and against the run's wall minutes, one
 line per run (named by its folder). The table gives each run's steps, wall and CPU minutes, the
 learning rate in env steps/s, its best evaluation and its return at step ``--at`` with the CPU
@@ -39,7 +41,7 @@ def main() -> None:
     parser.add_argument("--at", type=int, default=100_000, help="step to compare runs at")
     parser.add_argument("--title", default="Behaviour policies: greedy evaluation (10 episodes)")
     args = parser.parse_args()
-    curves = {run.name: read_evals(run) for run in args.runs}
+    curves = {run.stem: read_evals(run) for run in args.runs}
     empty = [name for name, evals in curves.items() if not evals]
     if empty:
         parser.error(f"no evals.csv rows in {', '.join(empty)}")

@@ -8,15 +8,21 @@ import numpy as np
 
 from xted.envs import Domain, make, normalized_score
 
+# Observation index of the root's pitch angle (qpos[2]) in HalfCheetah and Walker2d. Its mean
+# |value| tells a flipped halfcheetah (near pi, or growing while it rolls) from a running one.
+ROOT_PITCH = 1
+
 PolicyFn = Callable[[np.ndarray], np.ndarray]  # batch of observations -> batch of actions
 
 
 def evaluate(policy: PolicyFn, domain: Domain, episodes: int = 10, seed: int = 0) -> dict:
-    """Run ``episodes`` episodes side by side; returns returns, lengths and normalised scores."""
+    """Run ``episodes`` episodes side by side; returns returns, lengths, normalised scores and the
+    mean |root pitch| over all steps (radians)."""
     envs = [make(domain) for _ in range(episodes)]
     obs = np.stack([env.reset(seed=seed + i)[0] for i, env in enumerate(envs)])
     returns = np.zeros(episodes)
     lengths = np.zeros(episodes, dtype=int)
+    pitch_sum = 0.0
     active = np.ones(episodes, dtype=bool)
     while active.any():
         idx = np.flatnonzero(active)
@@ -25,6 +31,7 @@ def evaluate(policy: PolicyFn, domain: Domain, episodes: int = 10, seed: int = 0
             next_obs, reward, terminated, truncated, _ = envs[i].step(actions[j])
             returns[i] += reward
             lengths[i] += 1
+            pitch_sum += abs(float(next_obs[ROOT_PITCH]))
             obs[i] = next_obs
             if terminated or truncated:
                 active[i] = False
@@ -38,4 +45,5 @@ def evaluate(policy: PolicyFn, domain: Domain, episodes: int = 10, seed: int = 0
         "return_std": float(returns.std()),
         "normalized_scores": scores,
         "normalized_score": float(scores.mean()),
+        "root_pitch_mean": pitch_sum / max(int(lengths.sum()), 1),
     }

@@ -90,8 +90,9 @@ class OnlineRunConfig:
         return fields
 
 
-def read_evals(run_dir: str | Path) -> list[dict]:
-    path = Path(run_dir) / "evals.csv"
+def read_evals(run: str | Path) -> list[dict]:
+    """The evaluation rows of a run folder (or of an ``evals.csv`` copied out of one)."""
+    path = Path(run) if Path(run).suffix == ".csv" else Path(run) / "evals.csv"
     if not path.exists():
         return []
     with path.open() as f:
@@ -256,5 +257,6 @@ def _checkpoint(run_dir: Path, state, buffer, step, episode, explore_rng, domain
     with atomic_path(run_dir / "state.msgpack") as tmp:
         tmp.write_bytes(flax.serialization.msgpack_serialize(payload))
     return {"step": step, "return_mean": result["return_mean"], "return_std": result["return_std"],
-            "normalized_score": result["normalized_score"], "eval_seconds": eval_seconds,
+            "normalized_score": result["normalized_score"], "root_pitch_mean": result["root_pitch_mean"],
+            "eval_seconds": eval_seconds,
             "wall_seconds": seconds["wall"], "cpu_seconds": seconds["cpu"], "wall_time": time.time()}
