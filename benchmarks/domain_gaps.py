@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 
 from xted.data import load
-from xted.data.build import policies_dir
+from xted.data.shipped import policies_dir
 from xted.envs import PAPER_GAPS, parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 from xted.rl.evaluation import evaluate

@@ -17,7 +17,7 @@ import argparse
 from xted.analysis import content_similarity
 from xted.config import parse_overrides
 from xted.data import Dataset
-from xted.data.build import policies_dir
+from xted.data.shipped import policies_dir
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.training import load_prior
 from xted.envs import parse_domain

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from xted.data.build import BehaviourPolicies, build_dataset, policies_dir, policy_reference, select_checkpoints
+from xted.data.shipped import policies_dir
+from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset, policy_reference, select_checkpoints
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
 from xted.errors import InputError

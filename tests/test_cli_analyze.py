@@ -4,7 +4,7 @@ import pytest
 
 from xted.cli.main import main
 from xted.data import save
-from xted.data.build import build_dataset
+from xted.pipelines.behaviour_data import build_dataset
 from xted.envs import parse_domain
 
 

@@ -5,7 +5,7 @@ import hashlib
 import pytest
 
 from xted.data import load, shipped
-from xted.data.build import policies_dir
+from xted.data.shipped import policies_dir
 
 MANIFEST = shipped.manifest()
 EXPECTED = [f"{env}-{kind}" for env in ("halfcheetah", "walker2d")

@@ -30,7 +30,7 @@ from tqdm.auto import tqdm
 from xted.data import Dataset
 from xted.envs.dynamics import DynamicsError
 from xted.errors import InputError
-from xted.rl.networks import MLP
+from xted.nn import MLP
 
 
 @dataclass(frozen=True)

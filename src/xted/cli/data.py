@@ -64,7 +64,7 @@ def make(
     force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
 ) -> None:
     """Make a D4RL-style dataset by running behaviour policies in a domain."""
-    from xted.data.build import BehaviourPolicies, build_dataset
+    from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset
     from xted.envs import parse_domain
 
     domain = parse_domain(env, gap)

@@ -20,31 +20,17 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-# (module, attribute, name) of each sub-app; a module that is not there yet is skipped.
-_SUBAPPS = [
-    ("xted.cli.data", "app", "data"),
-    ("xted.cli.analyze", "app", "analyze"),
-    ("xted.cli.online", "app", "online"),
-]
-# (module, attribute) of modules that register top-level commands on ``app``.
+# Sub-apps by name, and the modules that register top-level commands on ``app``. A module that
+# fails to import is an error of xted itself, never a command silently missing.
+_SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online"}
 _COMMAND_MODULES = ["xted.cli.commands", "xted.cli.policy"]
 
 
 def _register() -> None:
-    for module_name, attr, name in _SUBAPPS:
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as err:
-            if err.name == module_name:
-                continue
-            raise
-        app.add_typer(getattr(module, attr), name=name)
+    for name, module_name in _SUBAPPS.items():
+        app.add_typer(importlib.import_module(module_name).app, name=name)
     for module_name in _COMMAND_MODULES:
-        try:
-            importlib.import_module(module_name)
-        except ModuleNotFoundError as err:
-            if err.name != module_name:
-                raise
+        importlib.import_module(module_name)
 
 
 _register()

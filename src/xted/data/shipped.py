@@ -40,6 +40,11 @@ def find(name: str) -> Path | None:
     return assets_dir() / entry["file"]
 
 
+def policies_dir() -> Path:
+    """The folder of the shipped behaviour policies (and medium replay buffers)."""
+    return assets_dir().parent / "policies"
+
+
 def prior_dir(name: str) -> Path:
     """The folder of the shipped (exported) prior called ``name``."""
     return assets_dir().parent / "priors" / name

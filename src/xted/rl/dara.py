@@ -24,7 +24,7 @@ import optax
 from flax.training.train_state import TrainState
 
 from xted.rl.iql import IQLConfig
-from xted.rl.networks import MLP
+from xted.nn import MLP
 
 CLASSIFIER_INPUTS = ("observations", "actions", "next_observations")
 

@@ -24,7 +24,8 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, MLP, Critic, ValueNet
+from xted.nn import MLP
+from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, Critic, ValueNet
 
 
 @dataclasses.dataclass(frozen=True)

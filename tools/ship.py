@@ -1,6 +1,8 @@
 """Build the datasets and behaviour policies shipped with xted (maintainers' tool).
 
-    python -m xted.data.ship [--runs runs/sac] [--transitions 20000] [--seed 0]
+    python tools/ship.py [--runs RUNS] [--envs ENV...] [--domains target gravity ...] [--transitions 20000]
+
+It lives outside the package: it writes into the package's own assets, which the library never does.
 
 From the online run folders ``RUNS/{domain}`` (``xted online train``) it copies the behaviour policies
 into ``xted/assets/policies`` (target: expert and medium; sources: expert), the replay buffer up
@@ -20,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from xted.atomic import atomic_path
-from xted.data.build import BehaviourPolicies, build_dataset, policies_dir
+from xted.data.shipped import policies_dir
+from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset
 from xted.data.formats import save
 from xted.data.shipped import MANIFEST_NAME, assets_dir
 from xted.envs import PAPER_GAPS, parse_domain

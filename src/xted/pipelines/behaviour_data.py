@@ -20,7 +20,7 @@ import numpy as np
 
 import xted
 from xted.data.dataset import Dataset
-from xted.data.shipped import assets_dir
+from xted.data.shipped import policies_dir
 from xted.envs import Domain, normalized_score
 from xted.errors import InputError
 from xted.rl.collect import collect, uniform_policy
@@ -59,10 +59,6 @@ class BehaviourPolicies:
         medium = folder / f"{domain.name}-medium.msgpack"
         replay = folder / f"{domain.name}-medium-replay-buffer.npz"
         return cls(expert, medium if medium.exists() else None, replay if replay.exists() else None)
-
-
-def policies_dir() -> Path:
-    return assets_dir().parent / "policies"
 
 
 def policy_reference(path: Path) -> str:

@@ -1,0 +1,1 @@
+"""Pipelines that combine the layers below: behaviour-data generation (and, later, the bench)."""

@@ -1,0 +1,53 @@
+"""The package's layers import only downward: core -> data -> envs -> diffusion | rl | analysis ->
+pipelines -> cli. Modules of one layer may import their own package, never a sibling package of
+the same layer (diffusion, rl and analysis stay independent of each other)."""
+
+import ast
+from pathlib import Path
+
+import xted
+
+PACKAGE = Path(xted.__file__).parent
+LAYERS = {
+    "core": 0, "data": 1, "envs": 2, "diffusion": 3, "rl": 3, "analysis": 3, "pipelines": 4, "cli": 5,
+}
+CORE_MODULES = {"__init__", "errors", "atomic", "config", "nn"}
+
+
+def component(module: str) -> str:
+    """``xted.rl.iql`` -> ``rl``; ``xted.errors`` -> ``core``."""
+    parts = module.split(".")
+    if len(parts) == 1 or parts[1] in CORE_MODULES:
+        return "core"
+    return parts[1]
+
+
+def imported_modules(path: Path) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+    return {name for name in found if name == "xted" or name.startswith("xted.")}
+
+
+def test_every_component_has_a_layer():
+    packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    modules = {p.stem for p in PACKAGE.glob("*.py")}
+    assert packages <= set(LAYERS), packages - set(LAYERS)
+    assert modules <= CORE_MODULES, modules - CORE_MODULES
+
+
+def test_imports_point_down():
+    violations = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        module = ".".join(("xted", *path.relative_to(PACKAGE).with_suffix("").parts))
+        own = component(module)
+        for imported in imported_modules(path):
+            other = component(imported)
+            if other == own:
+                continue
+            if LAYERS[other] >= LAYERS[own]:
+                violations.append(f"{module} ({own}) imports {imported} ({other})")
+    assert not violations, "\n".join(violations)
