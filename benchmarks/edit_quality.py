@@ -26,7 +26,8 @@ from xted.analysis import ProxyConfig, content_similarity, fit_proxy
 from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import load_prior, split_heldout
+from xted.data import split_heldout
+from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error, dynamics_error
 from xted.envs.make import forward_velocity_index

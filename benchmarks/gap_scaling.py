@@ -19,7 +19,7 @@ from xted.config import parse_overrides
 from xted.data import Dataset
 from xted.data.shipped import policies_dir
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import load_prior
+from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 from xted.envs.make import forward_velocity_index

@@ -33,7 +33,7 @@ from xted.atomic import atomic_path
 from xted.config import parse_overrides
 from xted.data import load, save
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import load_prior
+from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error, replayed_rewards, reward_error
 from xted.rl.offline_train import train_offline

@@ -65,7 +65,6 @@ def update_only(config: OnlineRunConfig, buffer_size: int, repeats: int) -> dict
 
 def whole_loop(config: OnlineRunConfig) -> float:
     """Learning-phase env steps per second of the full loop (each step is also one update)."""
-    algorithm, agent = ONLINE_ALGORITHMS[config.algo], config.agent
     # Compile train_block for this run's shapes first, so the timed loop holds no compile.
     update_only(config, config.total_steps + config.block, repeats=0)
     with tempfile.TemporaryDirectory() as folder:

@@ -18,7 +18,10 @@ from pathlib import Path
 from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import PriorConfig, load_prior, preset, split_heldout, train_prior
+from xted.data import split_heldout
+from xted.diffusion.config import PriorConfig, preset
+from xted.diffusion.prior import load_prior
+from xted.diffusion.training import train_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 

@@ -28,7 +28,9 @@ from prior_speed import median_seconds
 from xted.config import parse_overrides
 from xted.data import load
 from xted.data.normalizer import Normalizer
-from xted.diffusion.training import PriorConfig, _window_sampler, init_train_state, make_train_step, preset
+from xted.diffusion.config import PriorConfig, preset
+from xted.diffusion.objective import init_train_state, make_train_step
+from xted.diffusion.training import training_windows
 
 _INSTRUCTION = re.compile(r"^\s*(?:ROOT\s+)?%?([\w.\-]+) = .*?\s([a-z][\w\-]*)\((.*)$")
 _COMPUTATION = re.compile(r"^(?:ENTRY\s+)?%?([\w.\-]+)\s.*\{\s*$")
@@ -88,7 +90,7 @@ def main() -> None:
 
     data = load(args.target)
     config = preset(args.preset, data.observation_dim, data.action_dim, **parse_overrides(PriorConfig, args.overrides))
-    sampler, _ = _window_sampler(data, Normalizer.fit(data), config)
+    sampler, _ = training_windows(data, Normalizer.fit(data), config)
     batch = sampler.batch(np.random.default_rng(0), config.batch_size)
     step = make_train_step(config)
     key = jax.random.key(1)

@@ -18,8 +18,10 @@ import numpy as np
 from xted.config import parse_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.diffusion.training import (PriorConfig, Prior, _window_sampler, init_train_state, make_train_step,
-                                     preset)
+from xted.diffusion.config import PriorConfig, preset
+from xted.diffusion.objective import init_train_state, make_train_step
+from xted.diffusion.prior import Prior
+from xted.diffusion.training import training_windows
 from xted.data.normalizer import Normalizer
 
 
@@ -56,7 +58,7 @@ def matmul_peak(n: int = 2048, repeats: int = 10) -> float:
 
 def step_cost(config: PriorConfig, data, repeats: int) -> dict:
     state = init_train_state(config, jax.random.key(0))
-    sampler, _ = _window_sampler(data, Normalizer.fit(data), config)
+    sampler, _ = training_windows(data, Normalizer.fit(data), config)
     batch = sampler.batch(np.random.default_rng(0), config.batch_size)
     flops, seconds, final = time_update(make_train_step(config), state, batch, jax.random.key(1), repeats=repeats)
     params = sum(x.size for x in jax.tree.leaves(state.params))

@@ -7,7 +7,7 @@ from conftest import build_dataset
 
 from xted.cli.main import main
 from xted.data import load, save
-from xted.diffusion.training import export_prior, load_prior
+from xted.diffusion.prior import export_prior, load_prior
 
 TINY = ["--set", "width_override=8", "--set", "state_blocks=1", "--set", "action_blocks=1", "--set", "cond_dim=16",
         "--set", "horizon=5", "--set", "batch_size=8", "--set", "num_timesteps=10", "--set", "warmup_steps=0"]
@@ -115,7 +115,7 @@ def test_exported_prior_equals_the_checkpoint(files, tmp_path):
 
 
 def test_heldout_episodes_are_left_out_of_training(files):
-    from xted.diffusion.training import split_heldout
+    from xted.data import split_heldout
 
     target = load(files / "target.npz")
     train, heldout = split_heldout(target, 1, seed=0)

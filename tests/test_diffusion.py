@@ -29,7 +29,8 @@ from xted.diffusion import (
     q_sample,
     train_prior,
 )
-from xted.diffusion.training import LOSS_WEIGHTS, init_train_state
+from xted.diffusion.config import LOSS_WEIGHTS
+from xted.diffusion.objective import init_train_state
 from xted.errors import InputError
 
 TINY = PriorConfig(

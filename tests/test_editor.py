@@ -15,7 +15,7 @@ from xted.data import Normalizer
 from xted.diffusion import EditConfig, Prior, PriorConfig, edit_dataset, edit_windows
 from xted.diffusion.denoiser import apply_inverse
 from xted.diffusion.editor import _plan
-from xted.diffusion.training import init_train_state
+from xted.diffusion.objective import init_train_state
 from xted.errors import InputError
 
 H = TINY.horizon  # 4: windows overlap by one state, stride 3

@@ -3,6 +3,8 @@ pipelines -> cli. Modules of one layer may import their own package, never a sib
 the same layer (diffusion, rl and analysis stay independent of each other)."""
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import xted
@@ -51,3 +53,10 @@ def test_imports_point_down():
             if LAYERS[other] >= LAYERS[own]:
                 violations.append(f"{module} ({own}) imports {imported} ({other})")
     assert not violations, "\n".join(violations)
+
+
+def test_editing_does_not_load_the_training_stack():
+    code = ("import sys, xted.diffusion.editor; "
+            "print(sorted(m for m in ('optax', 'orbax.checkpoint', 'xted.diffusion.training') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

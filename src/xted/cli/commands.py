@@ -27,7 +27,9 @@ def train(
 ) -> None:
     """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints)."""
     from xted.data import load
-    from xted.diffusion.training import PriorConfig, preset as make_preset, split_heldout, train_prior
+    from xted.data import split_heldout
+    from xted.diffusion.config import PriorConfig, preset as make_preset
+    from xted.diffusion.training import train_prior
 
     data, _ = split_heldout(load(target), heldout_episodes)
     config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed,
@@ -60,7 +62,7 @@ def edit(
     from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
     from xted.data import formats, load
     from xted.diffusion.editor import EditConfig, edit_dataset
-    from xted.diffusion.training import load_prior
+    from xted.diffusion.prior import load_prior
     from xted.envs import check_same_env, dataset_env
 
     formats.check_writable(formats.target(out), overwrite=force)
@@ -113,7 +115,10 @@ def demo(
     from xted.analysis import ProxyConfig, content_similarity, fit_proxy
     from xted.data import formats, load, shipped
     from xted.diffusion.editor import EditConfig, edit_dataset
-    from xted.diffusion.training import PriorConfig, load_prior, split_heldout, train_prior
+    from xted.data import split_heldout
+    from xted.diffusion.config import PriorConfig
+    from xted.diffusion.prior import load_prior
+    from xted.diffusion.training import train_prior
     from xted.envs import PAPER_GAPS, parse_domain
     from xted.envs.dynamics import dataset_dynamics_error, reward_error
     from xted.envs.make import forward_velocity_index

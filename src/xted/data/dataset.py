@@ -237,3 +237,14 @@ def _json_roundtrip(metadata: Mapping[str, Any]) -> dict[str, Any]:
         return json.loads(json.dumps(dict(metadata)))
     except (TypeError, ValueError) as err:
         raise InputError(f"metadata is not JSON-serialisable: {err}") from None
+
+
+def split_heldout(dataset: Dataset, episodes: int, seed: int = 0) -> tuple[Dataset, Dataset | None]:
+    """(training part, ``episodes`` held-out episodes chosen at random, or None for 0): the held-out
+    episodes measure a prior's floor, the same edit applied to target data it never saw."""
+    if not 0 <= episodes < dataset.num_episodes:
+        raise InputError(f"cannot hold out {episodes} of {dataset.num_episodes} episodes")
+    if episodes == 0:
+        return dataset, None
+    order = np.random.default_rng(seed).permutation(dataset.num_episodes)
+    return dataset.select_episodes(np.sort(order[episodes:])), dataset.select_episodes(np.sort(order[:episodes]))

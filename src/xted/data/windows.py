@@ -1,102 +1,109 @@
-"""Fixed-horizon windows cut from episodes, never crossing an episode boundary.
+"""Fixed-horizon windows cut from episodes, never crossing an episode boundary: xted's one
+windowing module.
 
-Episodes shorter than the horizon are skipped (and counted) or padded. Padded steps repeat the
-last valid step's values and are marked invalid (``valid`` and ``loss_mask`` false), so a model
-never learns them as data. The first step of every window is the held (inpainted) transition:
-``first_mask`` is true there and ``loss_mask`` false.
+- Training draws stride-1 windows of ``H`` transitions (:func:`window_index`, sampled per batch by
+  :class:`WindowSampler`); episodes shorter than ``H`` are skipped and counted, never padded.
+- Editing tiles each episode's state sequence ``s_0 .. s_T`` (its ``T`` observations and the final
+  next observation) with windows that overlap by one step (:func:`tile_episodes`), so every
+  transition ``(s_t, a_t, s_t+1)`` lies inside one window.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from xted.data.dataset import Dataset
 from xted.errors import InputError
 
-ShortEpisodes = Literal["skip", "pad"]
 
-
-@dataclass(frozen=True, eq=False)
-class Windows:
-    """``W`` windows of ``H`` steps; per-step arrays are ``[W, H, ...]``."""
-
-    observations: np.ndarray
-    actions: np.ndarray
-    rewards: np.ndarray
-    next_observations: np.ndarray | None
-    loss_mask: np.ndarray
-    first_mask: np.ndarray
-    valid: np.ndarray
-    index: np.ndarray
-    returns: np.ndarray
-    skipped_episodes: int
-
-    def __len__(self) -> int:
-        return len(self.index)
-
-    @property
-    def horizon(self) -> int:
-        return self.index.shape[1]
-
-
-def window_index(
-    dataset: Dataset, horizon: int, stride: int = 1, short_episodes: ShortEpisodes = "skip"
-) -> tuple[np.ndarray, int]:
-    """``([W, H] flat step indices, -1 on padding; number of skipped episodes)``.
-
-    Windows start every ``stride`` steps of an episode while a full window fits.
-    """
-    _check_args(horizon, stride, short_episodes)
+def window_index(dataset: Dataset, horizon: int, stride: int = 1) -> tuple[np.ndarray, int]:
+    """``([W, H] flat step indices, number of skipped episodes)``: windows start every ``stride``
+    steps of an episode while a full window fits; shorter episodes are skipped."""
+    for name, value in (("horizon", horizon), ("stride", stride)):
+        if int(value) != value or value < 1:
+            raise InputError(f"{name} must be a positive integer, got {value}")
     rows, skipped = [], 0
     offsets = np.arange(horizon)
     for start, end in dataset.episode_bounds():
         if end - start >= horizon:
             rows.append(np.arange(start, end - horizon + 1, stride)[:, None] + offsets)
-        elif short_episodes == "pad":
-            rows.append(np.where(offsets < end - start, start + offsets, -1)[None])
         else:
             skipped += 1
     if not rows:
-        raise InputError(
-            f"no windows of horizon {horizon}: all {skipped} episodes are shorter "
-            f"(use short_episodes='pad' or a smaller horizon)"
-        )
+        raise InputError(f"no windows of horizon {horizon}: all {skipped} episodes are shorter")
     return np.concatenate(rows).astype(np.int64), skipped
 
 
-def make_windows(
-    dataset: Dataset, horizon: int, stride: int = 1, short_episodes: ShortEpisodes = "skip"
-) -> Windows:
-    """Cut ``dataset`` into windows (see :func:`window_index`) and gather their arrays."""
-    index, skipped = window_index(dataset, horizon, stride, short_episodes)
-    valid = index >= 0
-    last = index[np.arange(len(index)), valid.sum(axis=1) - 1]
-    gather = np.where(valid, index, last[:, None])
-    first_mask = np.zeros_like(valid)
-    first_mask[:, 0] = True
-    rewards = dataset.rewards[gather]
-    next_observations = dataset.next_observations
-    return Windows(
-        observations=dataset.observations[gather],
-        actions=dataset.actions[gather],
-        rewards=rewards,
-        next_observations=None if next_observations is None else next_observations[gather],
-        loss_mask=valid & ~first_mask,
-        first_mask=first_mask,
-        valid=valid,
-        index=index,
-        returns=np.where(valid, rewards, 0.0).sum(axis=1, dtype=np.float32),
-        skipped_episodes=skipped,
+@dataclass(frozen=True, eq=False)
+class WindowSampler:
+    """Windows gathered per batch from flat per-step arrays (never materialised as ``[W, H, ...]``)."""
+
+    flat: dict[str, np.ndarray]  # name -> [N, d] per-step values
+    index: np.ndarray  # [W, H] from window_index
+    returns: np.ndarray  # [W] one value per window
+    loss_mask: np.ndarray  # [H] positions that count in the loss
+
+    def batch(self, rng: np.random.Generator, size: int) -> dict[str, np.ndarray]:
+        pick = rng.integers(0, len(self.index), size=size)
+        rows = self.index[pick]
+        out = {name: values[rows] for name, values in self.flat.items()}
+        out["loss_mask"] = np.broadcast_to(self.loss_mask, rows.shape)
+        out["returns"] = self.returns[pick]
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeTiling:
+    """Windows over the per-episode state sequences and where each transition is read from."""
+
+    window_rows: np.ndarray  # [W, H] rows of the sequence arrays
+    transition_steps: np.ndarray  # [T] dataset rows of the tiled transitions
+    transition_window: np.ndarray  # [T] window of each transition
+    transition_position: np.ndarray  # [T] position of s_t in that window
+    sequence_steps: np.ndarray  # [S] dataset row each sequence position is taken from
+    sequence_is_next: np.ndarray  # [S] True where the position is the episode's final next observation
+    passed_through: np.ndarray  # [E] True for episodes too short to tile (fewer than H - 1 steps)
+
+
+def tile_episodes(bounds: np.ndarray, horizon: int) -> EpisodeTiling:
+    """Tile each episode's ``T + 1`` states with ``H``-step windows at stride ``H - 1`` (the last
+    one shifted back to end at the final state); a transition belongs to the window holding ``s_t``
+    at a position before the last."""
+    stride = horizon - 1
+    rows, t_steps, t_window, t_position, seq_steps, seq_next, passed = [], [], [], [], [], [], []
+    offset = n_windows = 0
+    for start, end in bounds:
+        length = int(end - start)
+        if length + 1 < horizon:
+            passed.append(True)
+            continue
+        passed.append(False)
+        starts = list(range(0, length + 2 - horizon, stride))
+        if starts[-1] + horizon < length + 1:
+            starts.append(length + 1 - horizon)
+        starts = np.asarray(starts)
+        rows.append(offset + starts[:, None] + np.arange(horizon))
+        t = np.arange(length)
+        window = np.minimum(t // stride, len(starts) - 1)
+        t_steps.append(start + t)
+        t_window.append(n_windows + window)
+        t_position.append(t - starts[window])
+        seq_steps.append(np.append(np.arange(start, end), end - 1))
+        seq_next.append(np.arange(length + 1) == length)
+        offset += length + 1
+        n_windows += len(starts)
+
+    def cat(parts: list, dtype) -> np.ndarray:
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
+
+    return EpisodeTiling(
+        window_rows=np.concatenate(rows) if rows else np.zeros((0, horizon), np.int64),
+        transition_steps=cat(t_steps, np.int64),
+        transition_window=cat(t_window, np.int64),
+        transition_position=cat(t_position, np.int64),
+        sequence_steps=cat(seq_steps, np.int64),
+        sequence_is_next=cat(seq_next, bool),
+        passed_through=np.asarray(passed, bool),
     )
-
-
-def _check_args(horizon: int, stride: int, short_episodes: str) -> None:
-    if int(horizon) != horizon or horizon < 1:
-        raise InputError(f"horizon must be a positive integer, got {horizon}")
-    if int(stride) != stride or stride < 1:
-        raise InputError(f"stride must be a positive integer, got {stride}")
-    if short_episodes not in ("skip", "pad"):
-        raise InputError(f"short_episodes must be 'skip' or 'pad', got {short_episodes!r}")

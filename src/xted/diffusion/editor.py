@@ -29,9 +29,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from xted.data import Dataset
+from xted.data.windows import tile_episodes
 from xted.diffusion.denoiser import Denoiser, DenoiserConfig, apply_inverse
 from xted.diffusion.schedule import Schedule, ddim_step, ddim_timesteps, ddpm_step, q_sample
-from xted.diffusion.training import Prior
+from xted.diffusion.prior import Prior
 from xted.errors import InputError
 
 
@@ -233,55 +234,6 @@ def edit_windows(
 
 
 # ------------------------------------------------------------------------------- datasets
-@dataclass(frozen=True, eq=False)
-class _Tiling:
-    """Windows over the per-episode state sequences and where each transition is read from."""
-
-    window_rows: np.ndarray  # [W, H] rows of the sequence arrays
-    transition_steps: np.ndarray  # [T] dataset rows of the edited transitions
-    transition_window: np.ndarray  # [T] window of each edited transition
-    transition_position: np.ndarray  # [T] position of s_t in that window
-    sequence_steps: np.ndarray  # [S] dataset row each sequence position is taken from
-    sequence_is_next: np.ndarray  # [S] True where the position is the episode's final next observation
-    passed_through: np.ndarray  # [E] True for episodes too short to edit
-
-
-def _tile(bounds: np.ndarray, horizon: int) -> _Tiling:
-    stride = horizon - 1
-    rows, t_steps, t_window, t_position, seq_steps, seq_next, passed = [], [], [], [], [], [], []
-    offset = n_windows = 0
-    for start, end in bounds:
-        length = int(end - start)
-        if length + 1 < horizon:
-            passed.append(True)
-            continue
-        passed.append(False)
-        starts = list(range(0, length + 2 - horizon, stride))
-        if starts[-1] + horizon < length + 1:
-            starts.append(length + 1 - horizon)
-        starts = np.asarray(starts)
-        rows.append(offset + starts[:, None] + np.arange(horizon))
-        t = np.arange(length)
-        window = np.minimum(t // stride, len(starts) - 1)
-        t_steps.append(start + t)
-        t_window.append(n_windows + window)
-        t_position.append(t - starts[window])
-        seq_steps.append(np.append(np.arange(start, end), end - 1))
-        seq_next.append(np.arange(length + 1) == length)
-        offset += length + 1
-        n_windows += len(starts)
-    cat = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)  # noqa: E731
-    return _Tiling(
-        window_rows=np.concatenate(rows) if rows else np.zeros((0, horizon), np.int64),
-        transition_steps=cat(t_steps, np.int64),
-        transition_window=cat(t_window, np.int64),
-        transition_position=cat(t_position, np.int64),
-        sequence_steps=cat(seq_steps, np.int64),
-        sequence_is_next=cat(seq_next, bool),
-        passed_through=np.asarray(passed, bool),
-    )
-
-
 def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dataset, dict[str, Any]]:
     """Edit every episode of ``source`` with ``prior``; returns the edited dataset and a report.
 
@@ -310,7 +262,7 @@ def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dat
                   "seconds": time.perf_counter() - began}
         return source.with_metadata(**metadata), report
 
-    tiling = _tile(bounds, cfg.horizon)
+    tiling = tile_episodes(bounds, cfg.horizon)
     next_observations = source.next_observations_or_derived()
     steps, is_next = tiling.sequence_steps, tiling.sequence_is_next
     raw = {

@@ -1,0 +1,106 @@
+"""The trained prior as an artefact: config, target normaliser, EMA parameters and return range;
+loaded from a training folder or an exported (inference-only, shippable) copy. Editing needs only
+this and the denoiser."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import flax.serialization
+import jax
+import numpy as np
+
+from xted.atomic import atomic_path
+from xted.data import Normalizer
+from xted.diffusion.config import PriorConfig
+from xted.diffusion.denoiser import Denoiser
+from xted.diffusion.schedule import Schedule, cosine_schedule
+from xted.errors import InputError
+
+FORMAT = "xted-prior/1"
+
+
+def read_prior_json(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise InputError(f"{path}: not a readable prior file ({err})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise InputError(f"{path}: not an xted prior (expected format {FORMAT!r})")
+    return data
+
+
+def normalize_returns(raw: Any, return_range: tuple[float, float]) -> Any:
+    """Window returns mapped to [0, 1] by the target's (min, max) window return, clipped."""
+    low, high = return_range
+    return np.clip((np.asarray(raw, np.float64) - low) / max(high - low, 1e-8), 0.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Prior:
+    """A trained prior ready for editing: config, target normaliser and EMA parameters."""
+
+    config: PriorConfig
+    normalizer: Normalizer
+    params: Any
+    return_range: tuple[float, float]
+    step: int = 0
+    path: str | None = None
+    env: str | None = None  # the env of the target data, where it said
+
+    @property
+    def model(self) -> Denoiser:
+        return Denoiser(self.config.denoiser)
+
+    @property
+    def schedule(self) -> Schedule:
+        return cosine_schedule(self.config.num_timesteps)
+
+
+EXPORTED_PARAMS = "params.msgpack"
+
+
+def export_prior(prior_dir: str | Path, dest: str | Path, provenance: dict[str, Any] | None = None) -> Path:
+    """Write an inference-only copy of a prior (``prior.json`` + EMA parameters): small enough to ship.
+
+    ``provenance`` (for example the command that trained it) is recorded in the copy's ``prior.json``."""
+    prior = load_prior(prior_dir)
+    dest = Path(dest)
+    meta = read_prior_json(Path(prior_dir) / "prior.json")
+    if provenance:
+        meta["provenance"] = provenance
+    with atomic_path(dest) as tmp:
+        tmp.mkdir()
+        (tmp / "prior.json").write_text(json.dumps(meta, indent=1))
+        payload = {"params": jax.device_get(prior.params), "step": prior.step}
+        (tmp / EXPORTED_PARAMS).write_bytes(flax.serialization.msgpack_serialize(payload))
+    return dest
+
+
+def load_prior(out_dir: str | Path) -> Prior:
+    """The EMA parameters (latest checkpoint, or an exported prior) with the config and normaliser."""
+    out_dir = Path(out_dir)
+    meta_path = out_dir / "prior.json"
+    if not meta_path.exists():
+        raise InputError(f"{out_dir}: no prior.json (not a prior folder)")
+    meta = read_prior_json(meta_path)
+    config = PriorConfig.from_dict(meta["config"])
+    if (out_dir / EXPORTED_PARAMS).exists():
+        payload = flax.serialization.msgpack_restore((out_dir / EXPORTED_PARAMS).read_bytes())
+        params, step = payload["params"], int(payload["step"])
+    else:
+        from xted.diffusion.checkpoint import restore_ema  # a training folder: Orbax and the train state
+
+        params, step = restore_ema(out_dir, config)
+    return Prior(
+        config=config,
+        normalizer=Normalizer.from_dict(meta["normalizer"]),
+        params=params,
+        return_range=tuple(meta["return_range"]),
+        step=step,
+        path=str(out_dir.resolve()),
+        env=meta.get("data", {}).get("env"),
+    )
