@@ -29,26 +29,22 @@ from pathlib import Path
 import numpy as np
 
 from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
-from xted.atomic import atomic_path
 from xted.config import parse_overrides
 from xted.data import load, save
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error, replayed_rewards, reward_error
+from xted.errors import InputError
 from xted.rl.offline_train import train_offline
+from xted.resume import resume_or_record
 
 
 def check_settings(out: Path, settings: dict) -> None:
-    path = out / "settings.json"
-    if path.exists():
-        recorded = json.loads(path.read_text())
-        if recorded != settings:
-            raise SystemExit(f"{out} holds a run with other settings ({path}: {recorded}); use another --out")
-        return
-    out.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(settings, indent=1))
+    try:
+        resume_or_record(out / "settings.json", settings)
+    except InputError as err:
+        raise SystemExit(str(err)) from None
 
 
 def replayed_in_target(domain, extra) -> dict:

@@ -275,7 +275,7 @@ def test_train_prior_resume_and_refuse(tmp_path):
     assert edited.metadata["edit"]["prior"] == str((tmp_path / "a").resolve())
     with (tmp_path / "a" / "log.csv").open() as f:
         assert [int(r["step"]) for r in csv.DictReader(f)] == [5, 10, 15, 20]
-    with pytest.raises(InputError, match="different config"):
+    with pytest.raises(InputError, match=r"config.learning_rate: 0.003 -> 0.0001"):
         train_prior(data, tmp_path / "a", dataclasses.replace(config, learning_rate=1e-4), steps=30, **kw)
     # A prior.json written before a field existed resumes: the missing field takes its default.
     meta = json.loads((tmp_path / "a" / "prior.json").read_text())

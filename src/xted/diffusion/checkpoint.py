@@ -18,6 +18,7 @@ from xted.diffusion.config import PriorConfig
 from xted.diffusion.objective import init_train_state
 from xted.diffusion.prior import read_prior_json
 from xted.errors import InputError
+from xted.resume import check_same_run
 
 
 def checkpoint_manager(out_dir: Path) -> ocp.CheckpointManager:
@@ -31,14 +32,8 @@ def prepare_out_dir(out_dir: Path, meta: dict[str, Any]) -> None:
     if path.exists():
         old = read_prior_json(path)
         old_config = PriorConfig.from_dict(old.get("config", {})).to_dict()  # fields added since take their defaults
-        if old_config != meta["config"]:
-            differ = sorted(k for k in meta["config"] if old_config.get(k) != meta["config"][k])
-            raise InputError(
-                f"{out_dir} holds a prior trained with a different config (fields {differ}); "
-                f"use another output folder or the same config to resume"
-            )
-        if old.get("data", {}).get("fingerprint") != meta["data"]["fingerprint"]:
-            raise InputError(f"{out_dir} holds a prior trained on different target data; use another output folder")
+        check_same_run(out_dir, {"config": old_config, "data": old.get("data", {}).get("fingerprint")},
+                       {"config": meta["config"], "data": meta["data"]["fingerprint"]})
         return
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(path, ".json") as tmp:

@@ -9,7 +9,7 @@ dispatch, a host gather and a host-to-device copy per update; the acting actor i
 ``block`` updates old. Blocks end at episode ends, so a run resumed from its last checkpoint (always
 at an episode end) replays the same blocks and is the same run.
 
-A run folder holds ``run.json`` (domain and config), ``state.msgpack`` + ``buffer.npz`` (the resume
+A run folder holds ``run.json`` (domain and config: the run's fingerprint, :mod:`xted.resume`), ``state.msgpack`` + ``buffer.npz`` (the resume
 point), ``evals.csv`` (greedy evaluation along training, with the run's wall and CPU seconds so
 far) and ``checkpoints/actor_STEP.msgpack``.
 """
@@ -33,6 +33,7 @@ from tqdm.auto import tqdm
 from xted.atomic import atomic_path
 from xted.envs import Domain, make
 from xted.errors import InputError
+from xted.resume import resume_or_record
 from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import Actor, save_actor
 from xted.rl.sac import SACConfig, init_sac, sac_update
@@ -134,28 +135,11 @@ def train_block(state, buffer: dict, rows: dict, start, size, num_updates, first
     return jax.lax.fori_loop(0, num_updates, one_update, state), buffer
 
 
-def _check_resume(meta_path: Path, meta: dict) -> None:
-    if not meta_path.exists():
-        return
-    stored = json.loads(meta_path.read_text())
-    if stored.get("domain") != meta["domain"]:
-        raise InputError(f"{meta_path.parent} holds a run in domain {stored.get('domain')}, not {meta['domain']}")
-    old, new = stored.get("run", {}), meta["run"]
-    differ = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
-    if differ:
-        detail = "; ".join(f"{k}: {old.get(k)} -> {new.get(k)}" for k in differ)
-        raise InputError(f"{meta_path.parent} holds a run with another config ({detail}); "
-                         f"resume with the same settings or use a new --out")
-
-
 def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = OnlineRunConfig(),
                  progress: bool = True) -> Path:
     """Train (or resume) ``config.algo`` in ``domain`` until ``config.total_steps`` env steps."""
     run_dir = Path(run_dir)
-    meta = {"domain": dataclasses.asdict(domain), "run": config.fingerprint(), "total_steps": config.total_steps}
-    meta_path = run_dir / "run.json"
-    _check_resume(meta_path, meta)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    resume_or_record(run_dir / "run.json", {"domain": dataclasses.asdict(domain), "run": config.fingerprint()})
 
     algorithm, agent = ONLINE_ALGORITHMS[config.algo], config.agent
     env = make(domain)
@@ -176,8 +160,6 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
         with np.load(run_dir / "buffer.npz") as stored:
             for key in BUFFER_FIELDS:
                 host_buffer[key][:step] = stored[key][:step]
-    with atomic_path(meta_path) as tmp:
-        tmp.write_text(json.dumps(meta, indent=2))
     if step >= config.total_steps:
         return run_dir
 

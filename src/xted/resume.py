@@ -1,0 +1,58 @@
+"""One rule for every resumable command: a run folder records a fingerprint of what the run is
+(its inputs' hashes and its settings); resuming with the same fingerprint continues, with another
+one is refused, naming each difference. A recorded fingerprint is never overwritten on resume."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from xted.atomic import atomic_path
+from xted.errors import InputError
+
+
+def as_json(value: Any) -> Any:
+    """``value`` as it reads back from JSON (tuples become lists), so fingerprints compare equal."""
+    return json.loads(json.dumps(value))
+
+
+def differences(old: Any, new: Any, prefix: str = "") -> list[tuple[str, Any, Any]]:
+    """``(dotted key, old, new)`` for every leaf that differs between two JSON-like values."""
+    if isinstance(old, Mapping) and isinstance(new, Mapping):
+        found = []
+        for key in sorted(set(old) | set(new), key=str):
+            found += differences(old.get(key), new.get(key), f"{prefix}{key}.")
+        return found
+    return [] if old == new else [(prefix.rstrip("."), old, new)]
+
+
+def check_same_run(where: str | Path, recorded: Mapping | None, fingerprint: Mapping) -> None:
+    """Refuse to resume ``where`` when its ``recorded`` fingerprint is not ``fingerprint``."""
+    if recorded is None:
+        return
+    found = differences(as_json(recorded), as_json(fingerprint))
+    if found:
+        detail = "; ".join(f"{key}: {_short(old)} -> {_short(new)}" for key, old, new in found)
+        raise InputError(f"{where} holds another run ({detail}); resume with the same inputs and settings, "
+                         f"or use another output folder")
+
+
+def resume_or_record(path: str | Path, fingerprint: Mapping) -> None:
+    """Check ``fingerprint`` against the JSON file ``path`` if it exists, else write it there."""
+    path = Path(path)
+    if path.exists():
+        try:
+            recorded = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise InputError(f"{path}: unreadable run record ({err})") from None
+        check_same_run(path.parent, recorded, fingerprint)
+        return
+    with atomic_path(path, ".json") as tmp:
+        tmp.write_text(json.dumps(as_json(fingerprint), indent=1))
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 24 else text[:10] + "..." + text[-8:]
