@@ -19,11 +19,12 @@ A dynamics proxy (MLP) is fitted to the prior's training episodes. Reported per 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
 from xted.analysis import ProxyConfig, content_similarity, fit_proxy
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.data import split_heldout
@@ -69,7 +70,7 @@ def main() -> None:
     unedited = {gap: {"sim_source": sim(d), "proxy_source": proxy.error(d).mae,
                       "proxy_resolution_source": proxy_resolution(d)} for gap, d in sources.items()}
     for kappa in args.kappa:
-        config = EditConfig(**{**parse_overrides(EditConfig, args.edit), "kappa": kappa, "seed": args.seed})
+        config = dataclasses.replace(apply_overrides(EditConfig(), args.edit), kappa=kappa, seed=args.seed)
         floor, _ = edit_dataset(prior, heldout, config)
         floor_row = {"sim": sim(floor), "proxy": proxy.error(floor).mae}
         for gap, source in sources.items():

@@ -13,9 +13,10 @@ forward-velocity correlation against mismatched episodes (task content kept).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 from xted.analysis import content_similarity
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import Dataset
 from xted.data.shipped import policies_dir
 from xted.diffusion.editor import EditConfig, edit_dataset
@@ -54,7 +55,7 @@ def main() -> None:
         source = Dataset(**arrays)
         before = sim(source)
         for kappa in args.kappa:
-            config = EditConfig(**{**parse_overrides(EditConfig, args.edit), "kappa": kappa, "seed": args.seed})
+            config = dataclasses.replace(apply_overrides(EditConfig(), args.edit), kappa=kappa, seed=args.seed)
             edited, _ = edit_dataset(prior, source, config)
             after = sim(edited)
             content = content_similarity(source, edited, forward)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import load, save
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.prior import load_prior
@@ -74,7 +74,7 @@ def main() -> None:
     args = parser.parse_args()
 
     seeds = [int(s) for s in args.seeds.split(",")]
-    edit = EditConfig(**{**parse_overrides(EditConfig, args.edit), "kappa": args.kappa})
+    edit = dataclasses.replace(apply_overrides(EditConfig(), args.edit), kappa=args.kappa)
     check_settings(args.out, {"env": args.env, "prior": str(args.prior), "target": args.target,
                               "edit": edit.__dict__, "steps": args.steps, "seeds": seeds,
                               "eval_every": args.eval_every, "edited_rewards": args.edited_rewards})

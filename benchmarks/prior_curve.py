@@ -15,11 +15,11 @@ import csv
 import json
 from pathlib import Path
 
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.data import split_heldout
-from xted.diffusion.config import PriorConfig, preset
+from xted.diffusion.config import preset
 from xted.diffusion.prior import load_prior
 from xted.diffusion.training import train_prior
 from xted.envs import parse_domain
@@ -46,8 +46,7 @@ def main() -> None:
     domain = parse_domain(args.env)
     train_data, heldout = split_heldout(load(args.target), args.heldout_episodes)
     sources = {name: load(name) for name in args.source}
-    config = preset(args.preset, train_data.observation_dim, train_data.action_dim,
-                    **parse_overrides(PriorConfig, args.overrides))
+    config = apply_overrides(preset(args.preset, train_data.observation_dim, train_data.action_dim), args.overrides)
     base = {"heldout": mae(domain, heldout), **{name: mae(domain, d) for name, d in sources.items()}}
     args.out.mkdir(parents=True, exist_ok=True)
     for steps in args.steps:

@@ -25,10 +25,10 @@ import jax
 import numpy as np
 
 from prior_speed import median_seconds
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import load
 from xted.data.normalizer import Normalizer
-from xted.diffusion.config import PriorConfig, preset
+from xted.diffusion.config import preset
 from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.training import training_windows
 
@@ -89,7 +89,7 @@ def main() -> None:
     args = parser.parse_args()
 
     data = load(args.target)
-    config = preset(args.preset, data.observation_dim, data.action_dim, **parse_overrides(PriorConfig, args.overrides))
+    config = apply_overrides(preset(args.preset, data.observation_dim, data.action_dim), args.overrides)
     sampler, _ = training_windows(data, Normalizer.fit(data), config)
     batch = sampler.batch(np.random.default_rng(0), config.batch_size)
     step = make_train_step(config)

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.config import PriorConfig, preset
@@ -98,8 +98,8 @@ def main() -> None:
     peak = matmul_peak()
     print(json.dumps({"matmul_peak_gflops": peak, "devices": str(jax.devices())}), flush=True)
     for name in args.presets:
-        config = preset(name, data.observation_dim, data.action_dim,
-                        **(parse_overrides(PriorConfig, args.overrides) if name == "cpu" else {}))
+        config = preset(name, data.observation_dim, data.action_dim)
+        config = apply_overrides(config, args.overrides) if name == "cpu" else config
         cost = step_cost(config, data, args.steps)
         state = cost.pop("state")
         result = {"preset": name, **cost, "fraction_of_peak": cost["achieved_gflops"] / peak}

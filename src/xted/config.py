@@ -1,4 +1,4 @@
-"""Typed configuration helpers: ``FIELD=VALUE`` strings to config dataclass fields."""
+"""The one override parser: ``--set FIELD=VALUE`` strings applied to a typed config dataclass."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from xted.errors import InputError
 BOOLEAN_WORDS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
 
 
-def parse_overrides(config_type: type, pairs: list[str]) -> dict[str, Any]:
-    """``["field=value", ...]`` -> typed overrides of a config dataclass's fields."""
+def _typed_values(config_type: type, pairs: list[str]) -> dict[str, Any]:
+    """``["field=value", ...]`` -> typed values of a config dataclass's scalar fields."""
     hints = typing.get_type_hints(config_type)
     overrides: dict[str, Any] = {}
     for pair in pairs:
@@ -36,3 +36,57 @@ def parse_overrides(config_type: type, pairs: list[str]) -> dict[str, Any]:
         except ValueError:
             raise InputError(f"--set {pair!r}: {text!r} is not a {kind.__name__}") from None
     return overrides
+
+
+def apply_overrides(config: Any, pairs: list[str]) -> Any:
+    """``config`` (a dataclass instance) with ``FIELD=VALUE`` overrides, typed by its annotations:
+    booleans as true/false/1/0/yes/no, ``none`` for an optional field, layer widths as
+    ``hidden=256,256``, a nested config's fields (DARA's IQL backbone) as ``iql.FIELD=VALUE``. The
+    result is built with ``dataclasses.replace``, so the config's own validation runs."""
+    own: list[str] = []
+    nested: dict[str, list[str]] = {}
+    sizes: dict[str, tuple[int, ...]] = {}
+    for pair in pairs:
+        name, _, text = pair.partition("=")
+        head, dot, _ = name.partition(".")
+        current = getattr(config, head, None)
+        if dataclasses.is_dataclass(current):
+            if not dot:
+                raise InputError(f"--set {pair!r}: {head} is a config; set {head}.FIELD=VALUE")
+            nested.setdefault(head, []).append(pair[len(head) + 1:])
+        elif isinstance(current, tuple) and not dot:
+            try:
+                sizes[head] = tuple(int(width) for width in text.split(","))
+            except ValueError:
+                sizes[head] = ()
+            if not sizes[head] or min(sizes[head]) <= 0:
+                raise InputError(f"--set {pair!r}: expected comma-separated positive layer widths such as 256,256")
+        else:
+            own.append(pair)
+    changes = {**_typed_values(type(config), own), **sizes}
+    changes.update({name: apply_overrides(getattr(config, name), sub) for name, sub in nested.items()})
+    return dataclasses.replace(config, **changes)
+
+
+def check_fields(config: Any) -> None:
+    """Validate an RL config's fields by what their names say: learning rates > 0; sizes, steps and
+    delays >= 1; discount, tau and expectile in (0, 1]; layer widths positive; every other
+    number >= 0. InputError names the config and the field."""
+    for field in dataclasses.fields(config):
+        name, value = field.name, getattr(config, field.name)
+        if isinstance(value, bool) or dataclasses.is_dataclass(value) or value is None:
+            continue
+        if isinstance(value, tuple):
+            ok, need = len(value) > 0 and all(isinstance(w, int) and w > 0 for w in value), "positive layer widths"
+        elif name.endswith("lr") or name == "learning_rate":
+            ok, need = value > 0, "> 0"
+        elif name.endswith(("batch_size", "batch", "steps", "delay")):
+            ok, need = int(value) == value and value >= 1, "an integer >= 1"
+        elif name in ("discount", "tau", "expectile"):
+            ok, need = 0 < value <= 1, "in (0, 1]"
+        elif isinstance(value, int | float):
+            ok, need = value >= 0, ">= 0"
+        else:
+            continue
+        if not ok:
+            raise InputError(f"{type(config).__name__}.{name} must be {need}, got {value!r}")

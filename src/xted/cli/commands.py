@@ -9,7 +9,7 @@ from typing import List, Optional
 import typer
 
 from xted.cli.main import app
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.errors import InputError
 
 
@@ -28,12 +28,11 @@ def train(
     """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints)."""
     from xted.data import load
     from xted.data import split_heldout
-    from xted.diffusion.config import PriorConfig, preset as make_preset
+    from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior
 
     data, _ = split_heldout(load(target), heldout_episodes)
-    config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed,
-                         **parse_overrides(PriorConfig, overrides))
+    config = apply_overrides(make_preset(preset, data.observation_dim, data.action_dim, seed=seed), overrides)
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
     typer.echo(f"prior trained to step {steps} in {out}")
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 from typing import List, Optional
@@ -10,7 +9,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
-from xted.config import parse_overrides
+from xted.config import apply_overrides
 from xted.cli.main import app
 from xted.errors import InputError
 
@@ -20,34 +19,6 @@ def parse_seeds(text: str) -> list[int]:
         return [int(part) for part in text.split(",")]
     except ValueError:
         raise InputError(f"--seeds {text!r}: expected comma-separated integers such as 0,1,2") from None
-
-
-def configure(config, pairs: list[str]):
-    """``config`` with ``FIELD=VALUE`` overrides: layer widths as ``hidden=256,256``, a nested config's
-    fields (DARA's IQL backbone) as ``iql.FIELD=VALUE``."""
-    own: list[str] = []
-    nested: dict[str, list[str]] = {}
-    sizes: dict[str, tuple[int, ...]] = {}
-    for pair in pairs:
-        name, _, text = pair.partition("=")
-        head, dot, _ = name.partition(".")
-        current = getattr(config, head, None)
-        if dataclasses.is_dataclass(current):
-            if not dot:
-                raise InputError(f"--set {pair!r}: {head} is a config; set {head}.FIELD=VALUE")
-            nested.setdefault(head, []).append(pair[len(head) + 1:])
-        elif isinstance(current, tuple) and not dot:
-            try:
-                sizes[head] = tuple(int(width) for width in text.split(","))
-            except ValueError:
-                sizes[head] = ()
-            if not sizes[head] or min(sizes[head]) <= 0:
-                raise InputError(f"--set {pair!r}: expected comma-separated positive layer widths such as 256,256")
-        else:
-            own.append(pair)
-    changes = {**parse_overrides(type(config), own), **sizes}
-    changes.update({name: configure(getattr(config, name), sub) for name, sub in nested.items()})
-    return dataclasses.replace(config, **changes)
 
 
 @app.command()
@@ -75,7 +46,7 @@ def policy(
     from xted.envs import check_same_env, dataset_env, parse_domain
     from xted.rl.offline_train import default_config, train_offline
 
-    config = configure(default_config(algo), overrides)
+    config = apply_overrides(default_config(algo), overrides)
     seed_list = parse_seeds(seeds)
     domain = parse_domain(env, gap)
     target_data, source_data = load(target), [load(s) for s in sources]

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
+from xted.config import check_fields
 from xted.rl.networks import DeterministicPolicy
 
 
@@ -22,6 +23,9 @@ class BCConfig:
     hidden: tuple[int, ...] = (256, 256)
     lr: float = 3e-4
     batch_size: int = 256
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @flax.struct.dataclass

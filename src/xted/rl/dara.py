@@ -23,8 +23,9 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.iql import IQLConfig
+from xted.config import check_fields
 from xted.nn import MLP
+from xted.rl.iql import IQLConfig
 
 CLASSIFIER_INPUTS = ("observations", "actions", "next_observations")
 
@@ -39,6 +40,9 @@ class DARAConfig:
     classifier_batch: int = 256
     input_noise: float = 0.1
     iql: IQLConfig = IQLConfig()
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 class DomainClassifiers(nn.Module):

@@ -24,6 +24,7 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
+from xted.config import check_fields
 from xted.nn import MLP
 from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, Critic, ValueNet
 
@@ -41,6 +42,9 @@ class IQLConfig:
     max_weight: float = 100.0
     batch_size: int = 256
     normalize_rewards: bool = False
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 class GaussianPolicy(nn.Module):

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
+from xted.config import check_fields
 from xted.rl.networks import Critic, TanhGaussianPolicy, sample_tanh_gaussian
 
 
@@ -27,6 +28,9 @@ class SACConfig:
     tau: float = 0.005
     batch_size: int = 256
     init_temperature: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @flax.struct.dataclass

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
+from xted.config import check_fields
 from xted.rl.networks import Critic, DeterministicPolicy
 
 
@@ -37,6 +38,9 @@ class TD3BCConfig:
     policy_delay: int = 2
     batch_size: int = 256
     behaviour_cloning: bool = True
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @flax.struct.dataclass
