@@ -20,11 +20,6 @@ from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import Actor
 
 
-def mae(domain, name: str) -> float:
-    data = load(name)
-    return dataset_dynamics_error(domain, data).mae
-
-
 def greedy_return(policy_name: str, domain, episodes: int) -> float:
     actor = Actor.load(policies_dir() / f"{policy_name}-expert.msgpack")
     return evaluate(actor.act, domain, episodes, seed=123)["return_mean"]
@@ -40,11 +35,11 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     for env in args.envs:
         target = parse_domain(env)
-        target_mae = mae(target, f"{env}-medium-replay")
+        target_mae = dataset_dynamics_error(target, load(f"{env}-medium-replay")).mae
         target_return = greedy_return(env, target, args.episodes)
         for gap in PAPER_GAPS[env]:
             source = parse_domain(env, gap)
-            print(f"| {env} | {gap} | {mae(target, source.name):.4f} | {target_mae:.2e} "
+            print(f"| {env} | {gap} | {dataset_dynamics_error(target, load(source.name)).mae:.4f} | {target_mae:.2e} "
                   f"| {greedy_return(source.name, target, args.episodes):.0f} "
                   f"| {greedy_return(source.name, source, args.episodes):.0f} | {target_return:.0f} |", flush=True)
 

@@ -16,7 +16,7 @@ import json
 import jax
 import jax.numpy as jnp
 
-from prior_speed import matmul_peak, median_seconds
+from timing import matmul_peak, median_seconds
 from xted.data import load
 from xted.rl.iql import IQLConfig
 from xted.rl.offline_train import default_config, init_seeds, init_state, prepare_data, train_seeds, train_steps

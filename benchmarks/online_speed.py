@@ -21,13 +21,13 @@ import jax
 import numpy as np
 
 from xted.envs import parse_domain
-from xted.rl.online import ONLINE_ALGORITHMS, OnlineRunConfig, _empty_buffer, read_evals, train_block, train_online
+from xted.rl.online import ONLINE_ALGORITHMS, OnlineRunConfig, empty_buffer, read_evals, train_block, train_online
 
 OBS_DIM, ACTION_DIM = 17, 6
 
 
 def device_buffer(size: int, rng: np.random.Generator) -> dict:
-    host = _empty_buffer(size, OBS_DIM, ACTION_DIM)
+    host = empty_buffer(size, OBS_DIM, ACTION_DIM)
     for key in ("observations", "actions", "rewards", "next_observations"):
         host[key][:] = rng.normal(size=host[key].shape)
     return {k: jax.device_put(v) for k, v in host.items()}

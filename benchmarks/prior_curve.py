@@ -26,10 +26,6 @@ from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 
 
-def mae(domain, data) -> float:
-    return dataset_dynamics_error(domain, data).mae
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", required=True)
@@ -47,7 +43,7 @@ def main() -> None:
     train_data, heldout = split_heldout(load(args.target), args.heldout_episodes)
     sources = {name: load(name) for name in args.source}
     config = apply_overrides(preset(args.preset, train_data.observation_dim, train_data.action_dim), args.overrides)
-    base = {"heldout": mae(domain, heldout), **{name: mae(domain, d) for name, d in sources.items()}}
+    base = {name: dataset_dynamics_error(domain, d).mae for name, d in {"heldout": heldout, **sources}.items()}
     args.out.mkdir(parents=True, exist_ok=True)
     for steps in args.steps:
         train_prior(train_data, args.out, config, steps, checkpoint_every=max(steps // 4, 1))
@@ -56,11 +52,12 @@ def main() -> None:
         prior = load_prior(args.out)
         edit = EditConfig(kappa=args.kappa)
         floor_data, report = edit_dataset(prior, heldout, edit)
-        point = {"steps": steps, "train_minutes": round(minutes, 2), "floor": mae(domain, floor_data),
+        point = {"steps": steps, "train_minutes": round(minutes, 2),
+                 "floor": dataset_dynamics_error(domain, floor_data).mae,
                  "heldout_unedited": base["heldout"], "edit_seconds": report["seconds"], "sources": {}}
         for name, data in sources.items():
             edited, _ = edit_dataset(prior, data, edit)
-            after = mae(domain, edited)
+            after = dataset_dynamics_error(domain, edited).mae
             point["sources"][name] = {"source": base[name], "edited": after, "ratio": after / base[name]}
         print(json.dumps(point), flush=True)
         with (args.out / "curve.jsonl").open("a") as f:

@@ -24,7 +24,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from prior_speed import median_seconds
+from timing import median_seconds
 from xted.config import apply_overrides
 from xted.data import load
 from xted.data.normalizer import Normalizer

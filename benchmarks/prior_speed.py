@@ -12,9 +12,9 @@ import json
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
+from timing import matmul_peak, time_update
 from xted.config import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
@@ -23,37 +23,6 @@ from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.prior import Prior
 from xted.diffusion.training import training_windows
 from xted.data.normalizer import Normalizer
-
-
-def median_seconds(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        jax.block_until_ready(fn())
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
-
-
-def time_update(update, state, *args, repeats: int) -> tuple[float, float, object]:
-    """(XLA-counted FLOPs, median seconds, final state) of ``state = update(state, *args)[0]``."""
-    cost = update.lower(state, *args).compile().cost_analysis()
-    flops = (cost[0] if isinstance(cost, list) else cost)["flops"]
-    holder = {"state": state}
-
-    def run():
-        holder["state"], metrics = update(holder["state"], *args)
-        return metrics
-
-    run()
-    return flops, median_seconds(run, repeats), holder["state"]
-
-
-def matmul_peak(n: int = 2048, repeats: int = 10) -> float:
-    """fp32 GFLOP/s of one n x n matmul through XLA."""
-    a = jnp.ones((n, n), jnp.float32)
-    f = jax.jit(lambda x: x @ x)
-    jax.block_until_ready(f(a))
-    return 2 * n**3 / median_seconds(lambda: f(a), repeats) / 1e9
 
 
 def step_cost(config: PriorConfig, data, repeats: int) -> dict:

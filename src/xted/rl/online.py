@@ -111,7 +111,8 @@ def actor_checkpoint(run_dir: str | Path, step: int) -> Path:
     return Path(run_dir) / "checkpoints" / f"actor_{int(step):07d}.msgpack"
 
 
-def _empty_buffer(size: int, obs_dim: int, action_dim: int) -> dict[str, np.ndarray]:
+def empty_buffer(size: int, obs_dim: int, action_dim: int) -> dict[str, np.ndarray]:
+    """Zeroed replay-buffer arrays of ``size`` transitions, one per field of ``BUFFER_FIELDS``."""
     return {"observations": np.zeros((size, obs_dim), np.float32), "actions": np.zeros((size, action_dim), np.float32),
             "rewards": np.zeros(size, np.float32), "next_observations": np.zeros((size, obs_dim), np.float32),
             "terminals": np.zeros(size, bool), "timeouts": np.zeros(size, bool)}
@@ -145,7 +146,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
     env = make(domain)
     obs_dim, action_dim = env.observation_space.shape[0], env.action_space.shape[0]
     state = algorithm.init(jax.random.PRNGKey(config.seed), obs_dim, action_dim, agent)
-    host_buffer = _empty_buffer(config.total_steps, obs_dim, action_dim)
+    host_buffer = empty_buffer(config.total_steps, obs_dim, action_dim)
     step, episode, seconds = 0, 0, {"wall": 0.0, "cpu": 0.0}
     explore_rng = np.random.default_rng(config.seed)
     evals = read_evals(run_dir)
@@ -184,7 +185,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
         actor = Actor(state.actor.params, actor_meta)
         start, n = step, min(config.block, config.total_steps - step)
         # Fresh rows every block: the device may still be reading the last block's (zero-copy, async).
-        rows = _empty_buffer(config.block, obs_dim, action_dim)
+        rows = empty_buffer(config.block, obs_dim, action_dim)
         for i in range(n):
             if step < config.start_steps:
                 action = explore_rng.uniform(-1.0, 1.0, action_dim).astype(np.float32)
