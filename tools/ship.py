@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> None:
             save(dataset, dest)
             returns = dataset.episode_returns()
             manifest["datasets"][name] = {
-                **file_entry(dest, data_root), "env": env, "gap": domain.gap, "level": level,
+                **file_entry(dest, data_root), "arrays_sha256": dataset.fingerprint(), "env": env, "gap": domain.gap,
+                "level": level,
                 "transitions": len(dataset), "episodes": dataset.num_episodes,
                 "return_mean": float(returns.mean()), "normalized_score": dataset.metadata["normalized_score"],
                 "command": command,
