@@ -23,15 +23,13 @@ import dataclasses
 import json
 from pathlib import Path
 
-from xted.analysis import ProxyConfig, content_similarity, fit_proxy
+from xted.analysis import ProxyConfig, edit_report, fit_proxy
 from xted.config import apply_overrides
-from xted.data import load
+from xted.data import load, split_heldout
 from xted.diffusion.editor import EditConfig, edit_dataset
-from xted.data import split_heldout
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
-from xted.envs.dynamics import dataset_dynamics_error, dynamics_error
-from xted.envs.make import forward_velocity_index
+from xted.envs.dynamics import dynamics_error
 
 
 def main() -> None:
@@ -49,13 +47,9 @@ def main() -> None:
     args = parser.parse_args()
 
     domain = parse_domain(args.env)
-    forward = forward_velocity_index(domain)
     train, heldout = split_heldout(load(args.target), args.heldout_episodes)
     prior = load_prior(args.prior)
     proxy = fit_proxy(train, ProxyConfig(seed=args.seed))
-
-    def sim(data) -> float:
-        return dataset_dynamics_error(domain, data).mae
 
     def proxy_resolution(data) -> float:
         return dynamics_error(domain, data.observations, data.actions, proxy.predict(data.observations, data.actions)).mae
@@ -67,20 +61,22 @@ def main() -> None:
           "| fwd-velocity corr matched / mismatched | floor sim / proxy |")
     print("|---|---|---|---|---|---|---|---|---|")
     sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
-    unedited = {gap: {"sim_source": sim(d), "proxy_source": proxy.error(d).mae,
-                      "proxy_resolution_source": proxy_resolution(d)} for gap, d in sources.items()}
+    resolution_sources = {gap: proxy_resolution(d) for gap, d in sources.items()}
     for kappa in args.kappa:
         config = dataclasses.replace(apply_overrides(EditConfig(), args.edit), kappa=kappa, seed=args.seed)
         floor, _ = edit_dataset(prior, heldout, config)
-        floor_row = {"sim": sim(floor), "proxy": proxy.error(floor).mae}
+        floor_report = edit_report(domain, heldout, floor, proxy)
+        floor_row = {"sim": floor_report["simulator"]["edited"]["mae"], "proxy": floor_report["proxy"]["edited"]}
         for gap, source in sources.items():
             edited, report = edit_dataset(prior, source, config)
-            content = content_similarity(source, edited, forward)
+            measured = edit_report(domain, source, edited, proxy)
+            content = measured["content"]
             row = {
                 "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit, "prior": str(args.prior),
                 "target": args.target,
-                **unedited[gap], "sim_edited": sim(edited), "proxy_edited": proxy.error(edited).mae,
-                "proxy_resolution_heldout": resolution_heldout,
+                "sim_source": measured["simulator"]["source"]["mae"], "sim_edited": measured["simulator"]["edited"]["mae"],
+                "proxy_source": measured["proxy"]["source"], "proxy_edited": measured["proxy"]["edited"],
+                "proxy_resolution_source": resolution_sources[gap], "proxy_resolution_heldout": resolution_heldout,
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
             }
             m, mm = content["matched"], content["mismatched"]

@@ -114,3 +114,16 @@ def test_content_refuses_different_episodes(make_dataset):
         content_similarity(make_dataset(lengths=(4, 6)), make_dataset(lengths=(5, 5)))
     with pytest.raises(InputError, match="forward_index"):
         content_similarity(make_dataset(), make_dataset(), forward_index=7)
+
+
+def test_edit_report_of_an_unchanged_source():
+    from xted.analysis import edit_report
+    from xted.data import load
+    from xted.envs import parse_domain
+
+    source = load("halfcheetah-gravity").select_episodes([0, 1])
+    report = edit_report(parse_domain("halfcheetah"), source, source)
+    assert report["simulator"]["source"] == report["simulator"]["edited"]
+    assert report["simulator"]["source"]["mae"] > 0.05  # 2x gravity is not the target's dynamics
+    assert report["content"]["matched"]["forward_velocity_correlation"] == pytest.approx(1.0)
+    assert "proxy" not in report

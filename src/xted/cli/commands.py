@@ -111,16 +111,13 @@ def demo(
     the paper's learned dynamics proxy, and compared for task content (forward-velocity correlation).
     The recorded rewards are replayed too: the prior edits them as well.
     ``--gap thigh`` edits the source whose gap is large enough for editing to lower that error."""
-    from xted.analysis import ProxyConfig, content_similarity, fit_proxy
-    from xted.data import formats, load, shipped
+    from xted.analysis import ProxyConfig, edit_report, fit_proxy, simulator_measures
+    from xted.data import formats, load, shipped, split_heldout
     from xted.diffusion.editor import EditConfig, edit_dataset
-    from xted.data import split_heldout
     from xted.diffusion.config import PriorConfig
     from xted.diffusion.prior import load_prior
     from xted.diffusion.training import train_prior
     from xted.envs import PAPER_GAPS, parse_domain
-    from xted.envs.dynamics import dataset_dynamics_error, reward_error
-    from xted.envs.make import forward_velocity_index
 
     if proxy_steps < 0:
         raise InputError(f"--proxy-steps must be >= 0, got {proxy_steps}")
@@ -139,23 +136,25 @@ def demo(
     formats.save(edited, edited_path)
     domain = parse_domain("halfcheetah")
     factor = PAPER_GAPS["halfcheetah"][gap][gap]
-    rows = [(name, dataset_dynamics_error(domain, d), reward_error(domain, d))
-            for name, d in (("target (medium-replay)", target), (f"source ({factor:g}x {gap})", source),
-                            ("edited source", edited))]
+    proxy = None
+    if proxy_steps:
+        proxy = fit_proxy(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], ProxyConfig(steps=proxy_steps, seed=seed))
+    measured = edit_report(domain, source, edited, proxy)
+    rows = [("target (medium-replay)", simulator_measures(domain, target)),
+            (f"source ({factor:g}x {gap})", measured["simulator"]["source"]),
+            ("edited source", measured["simulator"]["edited"])]
     typer.echo(f"prior: {prior.path} (step {prior.step}); edited {report['transitions']} transitions "
                f"in {report['seconds']:.1f} s -> {edited_path}")
     typer.echo("simulator dynamics error in the halfcheetah target domain (next state; recorded reward):")
-    for name, error, rewards in rows:
-        typer.echo(f"  {name:24s} MAE={error.mae:.4f}  MSE={error.mse:.4f}  (n={error.n})  "
-                   f"reward MAE={rewards.mae:.3f} bias={rewards.bias:+.3f}")
-    typer.echo(f"edited / source MAE: {rows[2][1].mae / rows[1][1].mae:.2f}")
-    if proxy_steps:
-        training_episodes = split_heldout(target, DEMO_HELDOUT_EPISODES)[0]
-        proxy = fit_proxy(training_episodes, ProxyConfig(steps=proxy_steps, seed=seed))
-        before, after = proxy.error(source).mae, proxy.error(edited).mae
+    for name, row in rows:
+        typer.echo(f"  {name:24s} MAE={row['mae']:.4f}  MSE={row['mse']:.4f}  (n={row['n']})  "
+                   f"reward MAE={row['reward_mae']:.3f} bias={row['reward_bias']:+.3f}")
+    typer.echo(f"edited / source MAE: {rows[2][1]['mae'] / rows[1][1]['mae']:.2f}")
+    if proxy is not None:
+        before, after = measured["proxy"]["source"], measured["proxy"]["edited"]
         typer.echo(f"learned proxy (the paper's measure, fitted to the prior's training episodes): "
                    f"source MAE={before:.4f}  edited MAE={after:.4f}  edited / source: {after / before:.2f}")
-    content = content_similarity(source, edited, forward_velocity_index(domain))
+    content = measured["content"]
     typer.echo("task content, forward-velocity correlation with the source: "
                f"edited {content['matched']['forward_velocity_correlation']:.2f}, "
                f"a different source episode {content['mismatched']['forward_velocity_correlation']:.2f}")

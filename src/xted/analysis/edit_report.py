@@ -1,0 +1,29 @@
+"""What an edit did, measured the three ways xted reports everywhere (``xted demo``,
+``benchmarks/edit_quality.py``): replayed in the target simulator (next states and rewards), by the
+paper's learned dynamics proxy where one is given, and for the task content it kept."""
+
+from __future__ import annotations
+
+from xted.analysis.content import content_similarity
+from xted.analysis.proxy import DynamicsProxy
+from xted.data import Dataset
+from xted.envs import Domain
+from xted.envs.dynamics import dataset_dynamics_error, reward_error
+from xted.envs.make import forward_velocity_index
+
+
+def simulator_measures(domain: Domain, data: Dataset) -> dict:
+    """Simulator dynamics error (MAE, MSE, n) and the recorded rewards' error (MAE, bias)."""
+    dynamics, rewards = dataset_dynamics_error(domain, data), reward_error(domain, data)
+    return {"mae": dynamics.mae, "mse": dynamics.mse, "n": dynamics.n, "reward_mae": rewards.mae,
+            "reward_bias": rewards.bias}
+
+
+def edit_report(domain: Domain, source: Dataset, edited: Dataset, proxy: DynamicsProxy | None = None) -> dict:
+    """``{"simulator": {"source", "edited"}, "proxy": {"source", "edited"} (with a proxy), "content"}``."""
+    report = {"simulator": {name: simulator_measures(domain, data) for name, data in (("source", source),
+                                                                                      ("edited", edited))}}
+    if proxy is not None:
+        report["proxy"] = {"source": proxy.error(source).mae, "edited": proxy.error(edited).mae}
+    report["content"] = content_similarity(source, edited, forward_velocity_index(domain))
+    return report
