@@ -1,6 +1,7 @@
-"""The package's layers import only downward: core -> data -> envs -> diffusion | rl | analysis ->
-pipelines -> cli. Modules of one layer may import their own package, never a sibling package of
-the same layer (diffusion, rl and analysis stay independent of each other)."""
+"""The package's layers import only downward: core (errors, atomic, config, nn, resume) -> data ->
+envs -> diffusion | rl | analysis -> pipelines -> cli. Modules of one layer may import their own
+package, never a sibling package of the same layer (diffusion, rl and analysis stay independent
+of each other)."""
 
 import ast
 import subprocess
@@ -13,7 +14,7 @@ PACKAGE = Path(xted.__file__).parent
 LAYERS = {
     "core": 0, "data": 1, "envs": 2, "diffusion": 3, "rl": 3, "analysis": 3, "pipelines": 4, "cli": 5,
 }
-CORE_MODULES = {"__init__", "errors", "atomic", "config", "nn"}
+CORE_MODULES = {"__init__", "errors", "atomic", "config", "nn", "resume"}
 
 
 def component(module: str) -> str:

@@ -5,8 +5,7 @@
 It lives outside the package: it writes into the package's own assets, which the library never does.
 
 From the online run folders ``RUNS/{domain}`` (``xted online train``) it copies the behaviour policies
-into ``xted/assets/policies`` (target: expert and medium; sources: expert), the replay buffer up
-to the medium checkpoint, then makes every shipped dataset with exactly the command a user would
+into ``xted/assets/policies`` (target: expert and medium; sources: expert), then makes every shipped dataset with exactly the command a user would
 run (``xted data make ... --out``) and records each file in ``assets/datasets/manifest.json``.
 Without ``--runs`` the shipped policies are kept and only the datasets are made again.
 """
@@ -19,7 +18,6 @@ import json
 import shutil
 from pathlib import Path
 
-import numpy as np
 
 from xted.atomic import atomic_path
 from xted.data.shipped import policies_dir
@@ -65,13 +63,6 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
                                   "eval_normalized_score": evals[step]["normalized_score"],
                                   "trained_steps": int(max(evals)), "command": f"xted online train --env {env}" + (f" --gap {gap}" if gap else "")
                                   + f" --algo {algo} --seed {meta['seed']} --steps {int(max(evals))} --out RUN"}
-        if domain.is_target:
-            step = Actor.load(chosen.medium).meta["step"]
-            dest = folder / f"{domain.name}-medium-replay-buffer.npz"
-            with np.load(chosen.replay) as buffer, atomic_path(dest, suffix=".npz") as tmp:
-                np.savez_compressed(tmp, **{k: buffer[k][:step] for k in buffer.files})
-            entries[dest.stem] = {**file_entry(dest, folder), "domain": domain.name, "role": "replay buffer",
-                                  "transitions": step}
     return entries
 
 
@@ -100,8 +91,14 @@ def main(argv: list[str] | None = None) -> None:
             name = f"{env}-{level}" if gap is None else domain.name
             dest = data_root / f"{name}.npz"
             command = (f"xted data make --env {env}" + (f" --gap {gap}" if gap else "")
-                       + f" --level {level} --transitions {args.transitions} --seed {args.seed} --out {name}.npz")
-            dataset = build_dataset(domain, level, args.transitions, BehaviourPolicies.shipped(domain), seed=args.seed)
+                       + f" --level {level} --transitions {args.transitions} --seed {args.seed} --out {name}.npz"
+                       + (" --run RUN" if level == "medium-replay" else ""))
+            # The replay buffer behind medium-replay (tens of MB) is not shipped: it comes from the run.
+            from_run = level == "medium-replay"
+            if from_run and args.runs is None:
+                raise SystemExit("medium-replay needs the run's replay buffer: pass --runs")
+            policies = BehaviourPolicies.from_run(args.runs / domain.name) if from_run else BehaviourPolicies.shipped(domain)
+            dataset = build_dataset(domain, level, args.transitions, policies, seed=args.seed)
             dataset = dataset.with_metadata(command=command, name=name)
             save(dataset, dest)
             returns = dataset.episode_returns()

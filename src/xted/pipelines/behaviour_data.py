@@ -139,7 +139,8 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
         raise InputError(f"level {level!r} needs behaviour policies")
     elif level == "medium-replay":
         if policies.replay is None or policies.medium is None or not policies.replay.exists():
-            raise InputError(f"no medium replay buffer for {domain.name}")
+            raise InputError(f"no medium replay buffer for {domain.name}: the buffers are not shipped (tens of MB); "
+                             f"pass --run with the `xted online train` run folder")
         arrays, returns = _subset_episodes(_replay_prefix(policies.replay, policies.medium), transitions, seed)
         policy_info = {"policy": policy_reference(policies.medium), "replay_buffer": policy_reference(policies.replay)}
     else:
