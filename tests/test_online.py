@@ -97,3 +97,14 @@ def test_cli_trains_and_evaluates(tmp_path, capsys):
     assert main(["online", "evaluate", str(actor_checkpoint(out, 600)), "--env", "halfcheetah", "--episodes", "1",
                  "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["domain"] == "halfcheetah"
+
+
+def test_stop_at_return_ends_the_run_at_that_evaluation_and_a_resume_can_go_on(tmp_path):
+    domain = parse_domain("halfcheetah")
+    base = dict(algo="td3", total_steps=2000, start_steps=500, checkpoint_every=1000, eval_episodes=1, td3=TINY_TD3)
+    train_online(domain, tmp_path / "run", OnlineRunConfig(stop_at_return=-1e9, **base), progress=False)
+    assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000]
+    train_online(domain, tmp_path / "run", OnlineRunConfig(stop_at_return=-1e9, **base), progress=False)
+    assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000]
+    train_online(domain, tmp_path / "run", OnlineRunConfig(stop_at_return=1e9, **base), progress=False)
+    assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000, 2000]

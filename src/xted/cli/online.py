@@ -26,6 +26,8 @@ def train(
     start_steps: int = typer.Option(5_000, "--start-steps", help="Uniform-random steps before learning."),
     eval_episodes: int = typer.Option(10, "--eval-episodes"),
     seed: int = typer.Option(0, "--seed"),
+    stop_at_return: Optional[float] = typer.Option(
+        None, "--stop-at-return", help="End the run at the first greedy evaluation whose mean return reaches this."),
 ) -> None:
     """Train in a domain; checkpoints, evaluations (evals.csv) and the replay buffer go to --out.
 
@@ -34,7 +36,8 @@ def train(
     from xted.rl.online import OnlineRunConfig, read_evals, train_online
 
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
-                             checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed)
+                             checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
+                             stop_at_return=stop_at_return)
     train_online(parse_domain(env, gap), out, config)
     last = read_evals(out)[-1]
     print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score")}}))

@@ -65,6 +65,7 @@ class OnlineRunConfig:
     block: int = 50  # environment steps (then as many updates) per jitted call
     exploration_noise: float = 0.1  # TD3's Gaussian action noise
     seed: int = 0
+    stop_at_return: float | None = None  # end the run at the first greedy evaluation that reaches this
     sac: SACConfig = SACConfig()
     td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
 
@@ -87,6 +88,7 @@ class OnlineRunConfig:
         """What makes two runs the same run: everything but how far it goes."""
         fields = json.loads(json.dumps(dataclasses.asdict(self)))
         fields.pop("total_steps")
+        fields.pop("stop_at_return")
         fields.pop("sac" if self.algo == "td3" else "td3")
         return fields
 
@@ -161,7 +163,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
         with np.load(run_dir / "buffer.npz") as stored:
             for key in BUFFER_FIELDS:
                 host_buffer[key][:step] = stored[key][:step]
-    if step >= config.total_steps:
+    if step >= config.total_steps or _reached(evals, config):
         return run_dir
 
     # The device buffer has one block of slack: a block's padded rows never clip at the end.
@@ -220,9 +222,15 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
                 _write_evals(run_dir, evals)
                 bar.set_postfix(eval=f"{evals[-1]['return_mean']:.0f}")
                 next_checkpoint = (step // config.checkpoint_every + 1) * config.checkpoint_every
+                if _reached(evals, config):
+                    break
             obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
     bar.close()
     return run_dir
+
+
+def _reached(evals: list[dict], config: OnlineRunConfig) -> bool:
+    return config.stop_at_return is not None and bool(evals) and evals[-1]["return_mean"] >= config.stop_at_return
 
 
 def _checkpoint(run_dir: Path, state, buffer, step, episode, explore_rng, domain, config, actor_meta,
