@@ -2,6 +2,7 @@ import pytest
 
 from xted import atomic
 from xted.atomic import atomic_path
+from xted.errors import InputError
 
 
 def _write_folder(path, text):
@@ -45,3 +46,17 @@ def test_a_file_is_replaced(tmp_path):
     with atomic_path(target) as tmp:
         tmp.write_text("new")
     assert target.read_text() == "new"
+
+
+def test_a_failed_write_leaves_no_folder_it_made(tmp_path):
+    with pytest.raises(RuntimeError), atomic_path(tmp_path / "new" / "deeper" / "out.txt") as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("crash while writing")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_refusal_of_the_file_system_names_the_target(tmp_path):
+    (tmp_path / "file").write_text("a file, not a folder")
+    with pytest.raises(InputError, match="cannot write .*file/out.txt"), atomic_path(tmp_path / "file" / "out.txt") as tmp:
+        tmp.write_text("never")
+    assert [p.name for p in tmp_path.iterdir()] == ["file"]

@@ -13,7 +13,7 @@ from xted.rl.online import OnlineRunConfig, train_online
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     run = tmp_path_factory.mktemp("sac") / "halfcheetah"
-    config = OnlineRunConfig(total_steps=3000, start_steps=500, checkpoint_every=1000, eval_episodes=1,
+    config = OnlineRunConfig(algo="sac", total_steps=3000, start_steps=500, checkpoint_every=1000, eval_episodes=1,
                           sac=SACConfig(hidden=(32, 32), batch_size=64))
     train_online(parse_domain("halfcheetah"), run, config, progress=False)
     return run

@@ -147,7 +147,7 @@ def test_convert_refuses_output_equal_to_input(tmp_path, capsys, tiny_dataset, m
     save(tiny_dataset, tmp_path / "x.npz")
     before = (tmp_path / "x.npz").read_bytes()
     assert main(["data", "convert", str(tmp_path / "x.npz"), dst, "--force"]) == 2
-    assert "is the input" in capsys.readouterr().err
+    assert "is the source input" in capsys.readouterr().err
     assert (tmp_path / "x.npz").read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["x.npz"]
 

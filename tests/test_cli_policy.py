@@ -41,8 +41,14 @@ def test_policy_json_and_resume(halfcheetah, tmp_path, capsys, monkeypatch):
     # Same transition count, other data: refused too, not silently reused.
     other = tmp_path / "other.npz"
     save(build_dataset(parse_domain("halfcheetah"), "random", 300, None, seed=1, progress=False), other)
-    rc = main([str(other) if a == str(halfcheetah) else a for a in args])
+    other_args = [str(other) if a == str(halfcheetah) else a for a in args]
+    rc = main(other_args)
     assert rc == 2 and "data" in capsys.readouterr().err
+    monkeypatch.undo()
+    assert main([*other_args, "--force"]) == 0  # --force discards the old results and trains afresh
+    retrained = json.loads(capsys.readouterr().out)
+    assert retrained["scores"] != out["scores"]
+    assert main(other_args) == 0  # and the new results are resumed from
 
 
 def test_dara_with_nested_overrides(halfcheetah, capsys):

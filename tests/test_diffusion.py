@@ -29,7 +29,8 @@ from xted.diffusion import (
     q_sample,
     train_prior,
 )
-from xted.diffusion.config import LOSS_WEIGHTS
+from xted.diffusion.config import LOSS_WEIGHTINGS
+from xted.diffusion.objective import LOSS_WEIGHTS
 from xted.diffusion.objective import init_train_state
 from xted.errors import InputError
 
@@ -201,6 +202,7 @@ def test_loss_weights():
     snr = jnp.array([0.5, 5.0, 20.0])
     np.testing.assert_allclose(LOSS_WEIGHTS["uniform"](snr), 1.0)
     np.testing.assert_allclose(LOSS_WEIGHTS["min_snr"](snr), [1.0, 1.0, 0.25])
+    assert tuple(LOSS_WEIGHTS) == LOSS_WEIGHTINGS  # the names the config accepts are the weightings there are
 
 
 def _sine_batch(b: int, h: int, seed: int) -> dict[str, np.ndarray]:

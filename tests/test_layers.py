@@ -1,4 +1,4 @@
-"""The package's layers import only downward: core (errors, atomic, config, nn, resume) -> data ->
+"""The package's layers import only downward: core (errors, atomic, config, lazy, nn, resume) -> data ->
 envs -> diffusion | rl | analysis -> pipelines -> cli. Modules of one layer may import their own
 package, never a sibling package of the same layer (diffusion, rl and analysis stay independent
 of each other)."""
@@ -14,7 +14,7 @@ PACKAGE = Path(xted.__file__).parent
 LAYERS = {
     "core": 0, "data": 1, "envs": 2, "diffusion": 3, "rl": 3, "analysis": 3, "pipelines": 4, "cli": 5,
 }
-CORE_MODULES = {"__init__", "errors", "atomic", "config", "nn", "resume"}
+CORE_MODULES = {"__init__", "errors", "atomic", "config", "lazy", "nn", "resume"}
 
 
 def component(module: str) -> str:
@@ -61,3 +61,23 @@ def test_editing_does_not_load_the_training_stack():
             "print(sorted(m for m in ('optax', 'orbax.checkpoint', 'xted.diffusion.training') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_the_cli_and_the_configs_load_without_jax():
+    """`xted --help` stays fast: the CLI takes its defaults from plain-Python config modules."""
+    code = ("import sys, xted.cli.main, xted.diffusion.config, xted.rl.configs, xted.analysis.config; "
+            "print(sorted(m for m in ('jax', 'flax', 'optax') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_lazy_exports_resolve_to_their_objects_not_to_a_submodule_of_the_same_name():
+    import types
+
+    import xted.analysis
+    import xted.diffusion
+
+    for package in (xted.analysis, xted.diffusion):
+        for _ in range(2):  # the second pass runs with every submodule imported (bound on the package)
+            for name in package.__all__:
+                assert not isinstance(getattr(package, name), types.ModuleType), f"{package.__name__}.{name}"

@@ -7,7 +7,8 @@ import pytest
 from xted.cli.main import main
 from xted.envs import parse_domain
 from xted.errors import InputError
-from xted.rl.online import OnlineRunConfig, actor_checkpoint, read_evals, train_online
+from xted.rl.configs import ONLINE_ALGORITHM_NAMES
+from xted.rl.online import ONLINE_ALGORITHMS, OnlineRunConfig, actor_checkpoint, read_evals, train_online
 from xted.rl.policy_io import Actor
 from xted.rl.sac import SACConfig, init_sac, sac_update
 from xted.rl.td3bc import TD3BCConfig
@@ -59,7 +60,7 @@ def test_block_size_changes_only_when_the_actor_is_refreshed(tmp_path):
     """Before learning starts the actor is never used: any block size gives the same buffer and
     the same first updates' batches, so the same parameters after the first update."""
     domain = parse_domain("halfcheetah")
-    base = dict(total_steps=1000, start_steps=1000, checkpoint_every=1000, eval_episodes=1, sac=TINY)
+    base = dict(algo="sac", total_steps=1000, start_steps=1000, checkpoint_every=1000, eval_episodes=1, sac=TINY)
     for block in (1, 50):
         train_online(domain, tmp_path / str(block), OnlineRunConfig(block=block, **base), progress=False)
     _params_equal(Actor.load(actor_checkpoint(tmp_path / "1", 1000)).params,
@@ -68,24 +69,29 @@ def test_block_size_changes_only_when_the_actor_is_refreshed(tmp_path):
 
 def test_resume_refuses_other_settings_and_a_shorter_run(tmp_path):
     domain = parse_domain("halfcheetah")
-    config = OnlineRunConfig(total_steps=1000, start_steps=500, checkpoint_every=1000, eval_episodes=1, sac=TINY)
+    config = OnlineRunConfig(algo="sac", total_steps=1000, start_steps=500, checkpoint_every=1000, eval_episodes=1, sac=TINY)
     train_online(domain, tmp_path / "run", config, progress=False)
     with pytest.raises(InputError, match="start_steps: 500 -> 400"):
-        train_online(domain, tmp_path / "run", OnlineRunConfig(total_steps=2000, start_steps=400, checkpoint_every=1000,
+        train_online(domain, tmp_path / "run", OnlineRunConfig(algo="sac", total_steps=2000, start_steps=400, checkpoint_every=1000,
                                                                eval_episodes=1, sac=TINY), progress=False)
     with pytest.raises(InputError, match="domain"):
         train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "run", config, progress=False)
     with pytest.raises(InputError, match="beyond --steps 500"):
-        train_online(domain, tmp_path / "run", OnlineRunConfig(total_steps=500, start_steps=500, checkpoint_every=1000,
+        train_online(domain, tmp_path / "run", OnlineRunConfig(algo="sac", total_steps=500, start_steps=500, checkpoint_every=1000,
                                                                eval_episodes=1, sac=TINY), progress=False)
 
 
-@pytest.mark.parametrize("flag", [["--steps", "0"], ["--checkpoint-every", "0"], ["--algo", "ppo"]])
-def test_cli_refuses_bad_settings(tmp_path, capsys, flag):
+def test_every_online_algorithm_name_has_an_algorithm():
+    assert tuple(ONLINE_ALGORITHMS) == ONLINE_ALGORITHM_NAMES
+
+
+@pytest.mark.parametrize("flag, says", [(["--steps", "0"], "--steps"), (["--checkpoint-every", "0"], "--checkpoint-every"),
+                                        (["--algo", "ppo"], "'ppo'")])
+def test_cli_refuses_bad_settings(tmp_path, capsys, flag, says):
     code = main(["online", "train", "--env", "halfcheetah", "--out", str(tmp_path / "run"), *flag])
     assert code == 2
     assert not (tmp_path / "run").exists()
-    assert "error" in capsys.readouterr().err
+    assert says in capsys.readouterr().err
 
 
 def test_cli_trains_and_evaluates(tmp_path, capsys):

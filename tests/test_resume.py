@@ -3,7 +3,7 @@ import json
 import pytest
 
 from xted.errors import InputError
-from xted.resume import check_same_run, differences, resume_or_record
+from xted.resume import check_same_run, differences, discard_run, resume_or_record
 
 
 def test_differences_name_nested_keys():
@@ -32,3 +32,21 @@ def test_unreadable_record_is_named(tmp_path):
 
 def test_nothing_recorded_means_a_new_run():
     check_same_run("x", None, {"anything": 1})
+
+
+def test_discard_run_deletes_a_run_folder_and_refuses_any_other(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "seed_0.json").write_text("{}")
+    discard_run(run, ("seed_*.json",))
+    assert not run.exists()
+    discard_run(run, ("seed_*.json",))  # nothing there: nothing to do
+    (tmp_path / "empty").mkdir()
+    discard_run(tmp_path / "empty", ("run.json",))
+    assert not (tmp_path / "empty").exists()
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "thesis.tex").write_text("chapter 1")
+    with pytest.raises(InputError, match="refusing to delete"):
+        discard_run(notes, ("run.json",))
+    assert (notes / "thesis.tex").exists()

@@ -11,33 +11,53 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
+from xted.errors import InputError
+
 
 @contextlib.contextmanager
 def atomic_path(target: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     """Yield a temporary path next to ``target``; rename it to ``target`` on success.
 
-    On an exception the temporary file or folder is removed and ``target`` is untouched.
-    The temporary name ends with ``suffix``, for writers that add or check an extension
-    (``np.savez`` appends ``.npz`` to a name without it).
+    On an exception the temporary file or folder is removed, so are the folders made for
+    ``target``, and ``target`` is untouched. A refusal of the file system (a read-only folder, a
+    full disk) becomes an InputError naming ``target``. The temporary name ends with ``suffix``,
+    for writers that add or check an extension (``np.savez`` appends ``.npz`` to a name without it).
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.tmp-", suffix=suffix, dir=target.parent)
-    os.close(fd)
-    os.unlink(tmp)
-    tmp_path = Path(tmp)
+    missing = _missing_folders(target.parent)
+    tmp_path = None
     try:
+        for folder in reversed(missing):
+            folder.mkdir()
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.tmp-", suffix=suffix, dir=target.parent)
+        os.close(fd)
+        os.unlink(tmp)
+        tmp_path = Path(tmp)
         yield tmp_path
         if target.is_dir() and not target.is_symlink():
             _swap_in_folder(tmp_path, target)
         else:
             os.replace(tmp_path, target)
-    except BaseException:
-        if tmp_path.is_dir():
+    except BaseException as err:
+        if tmp_path is not None and tmp_path.is_dir():
             shutil.rmtree(tmp_path, ignore_errors=True)
-        elif tmp_path.exists():
+        elif tmp_path is not None and tmp_path.exists():
             tmp_path.unlink()
+        for folder in missing:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        if isinstance(err, OSError):
+            raise InputError(f"cannot write {target}: {err.strerror or err}") from err
         raise
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """``folder`` and its ancestors that do not exist yet, innermost first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
 
 
 _RENAME_EXCHANGE = 2

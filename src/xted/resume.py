@@ -5,6 +5,7 @@ one is refused, naming each difference. A recorded fingerprint is never overwrit
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ def check_same_run(where: str | Path, recorded: Mapping | None, fingerprint: Map
     if found:
         detail = "; ".join(f"{key}: {_short(old)} -> {_short(new)}" for key, old, new in found)
         raise InputError(f"{where} holds another run ({detail}); resume with the same inputs and settings, "
-                         f"or use another output folder")
+                         f"use another output folder, or pass --force to start afresh")
 
 
 def resume_or_record(path: str | Path, fingerprint: Mapping) -> None:
@@ -51,6 +52,22 @@ def resume_or_record(path: str | Path, fingerprint: Mapping) -> None:
         return
     with atomic_path(path, ".json") as tmp:
         tmp.write_text(json.dumps(as_json(fingerprint), indent=1))
+
+
+def discard_run(run_dir: str | Path, markers: tuple[str, ...]) -> None:
+    """Delete a previous run's folder so that a run starts afresh (``--force``). Only a folder that
+    holds one of the run's marker files (glob patterns) or nothing at all is deleted; any other is
+    refused, so that a mistyped ``--out`` never deletes unrelated files."""
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        return
+    if not run_dir.is_dir():
+        raise InputError(f"--force: {run_dir} is a file, not a run folder")
+    contents = list(run_dir.iterdir())
+    if contents and not any(next(run_dir.glob(marker), None) for marker in markers):
+        raise InputError(f"--force: {run_dir} holds no run of this command (none of {', '.join(markers)}); "
+                         f"refusing to delete it")
+    shutil.rmtree(run_dir)
 
 
 def _short(value: Any) -> str:

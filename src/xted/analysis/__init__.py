@@ -1,10 +1,13 @@
 """Measuring edits: learned models of the target (the paper's dynamics proxy, a reward proxy) and
-task-content similarity."""
+task-content similarity. Names are loaded on first use (``xted.analysis.config`` stays light)."""
 
-from xted.analysis.content import content_similarity
-from xted.analysis.edit_report import edit_report, simulator_measures
-from xted.analysis.proxy import (DynamicsProxy, ProxyConfig, RewardProxy, fit_proxy, fit_reward_proxy,
-                                 relabel_rewards)
+from xted.lazy import lazy_exports
 
-__all__ = ["DynamicsProxy", "ProxyConfig", "RewardProxy", "content_similarity", "edit_report", "fit_proxy", "fit_reward_proxy",
-           "relabel_rewards", "simulator_measures"]
+_EXPORTS = {
+    "ProxyConfig": "config", "content_similarity": "content", "edit_report": "report",
+    "simulator_measures": "report", "DynamicsProxy": "proxy", "RewardProxy": "proxy", "fit_proxy": "proxy",
+    "fit_reward_proxy": "proxy", "relabel_rewards": "proxy",
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

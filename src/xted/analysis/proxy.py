@@ -27,23 +27,11 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
+from xted.analysis.config import ProxyConfig
 from xted.data import Dataset
 from xted.envs.dynamics import DynamicsError
 from xted.errors import InputError
 from xted.nn import MLP
-
-
-@dataclass(frozen=True)
-class ProxyConfig:
-    hidden: tuple[int, ...] = (256, 256, 256)
-    steps: int = 20_000
-    batch_size: int = 256
-    lr: float = 1e-3
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        if self.steps < 1 or self.batch_size < 1 or self.lr <= 0 or not self.hidden:
-            raise InputError(f"ProxyConfig: steps, batch_size, lr and hidden must be positive, got {self}")
 
 
 @dataclass(frozen=True)

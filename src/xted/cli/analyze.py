@@ -7,6 +7,7 @@ from typing import List, Optional
 
 import typer
 
+from xted.analysis.config import ProxyConfig
 from xted.envs import parse_domain
 
 app = typer.Typer(help="Measure datasets: simulator dynamics error, learned proxy, task content.", no_args_is_help=True)
@@ -46,13 +47,13 @@ def dynamics(
 def proxy(
     datasets: List[str] = typer.Argument(..., help="Datasets to measure (paths or shipped names)."),
     target: str = typer.Option(..., "--target", help="Target data the proxy is fitted to."),
-    steps: int = typer.Option(20_000, "--steps", help="Proxy training steps."),
-    seed: int = typer.Option(0, "--seed"),
+    steps: int = typer.Option(ProxyConfig.steps, "--steps", min=1, help="Proxy training steps."),
+    seed: int = typer.Option(0, "--seed", min=0),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """The paper's measure, no simulator needed: fit an MLP dynamics model to the target data and
     report |model(s, a) - s'| for each dataset."""
-    from xted.analysis import ProxyConfig, fit_proxy
+    from xted.analysis import fit_proxy
     from xted.data import load
 
     measured = {name: load(name) for name in datasets}
@@ -73,7 +74,8 @@ def content(
     source: str = typer.Argument(..., help="The source dataset."),
     edited: str = typer.Argument(..., help="Its edit (same episodes)."),
     env: Optional[str] = typer.Option(None, "--env", help="halfcheetah or walker2d: adds the forward-velocity correlation."),
-    cutoff: float = typer.Option(0.2, "--cutoff", help="Low-frequency band, as a fraction of the Nyquist frequency."),
+    cutoff: float = typer.Option(0.2, "--cutoff", min=0.01, max=1.0,
+                                 help="Low-frequency band, as a fraction of the Nyquist frequency."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """How much task content an edit kept: low-frequency spectrum difference and forward-velocity

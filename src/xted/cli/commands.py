@@ -8,9 +8,12 @@ from typing import List, Optional
 
 import typer
 
+from xted.analysis.config import ProxyConfig
 from xted.cli.main import app
 from xted.config import apply_overrides
+from xted.diffusion.config import EditConfig
 from xted.errors import InputError
+from xted.resume import discard_run
 
 
 @app.command()
@@ -18,21 +21,23 @@ def train(
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     out: Path = typer.Option(..., "--out", help="Prior folder; an existing one is resumed."),
     preset: str = typer.Option("cpu", "--preset", help="cpu (fast, small) or paper (the paper's model)."),
-    steps: int = typer.Option(20_000, "--steps", help="Total training steps."),
-    seed: int = typer.Option(0, "--seed"),
-    checkpoint_every: int = typer.Option(1000, "--checkpoint-every"),
-    heldout_episodes: int = typer.Option(0, "--heldout-episodes",
+    steps: int = typer.Option(20_000, "--steps", min=1, help="Total training steps."),
+    seed: int = typer.Option(0, "--seed", min=0),
+    checkpoint_every: int = typer.Option(1000, "--checkpoint-every", min=1),
+    heldout_episodes: int = typer.Option(0, "--heldout-episodes", min=0,
                                          help="Leave this many random target episodes out (to measure the floor)."),
     overrides: List[str] = typer.Option([], "--set", help="Override a config field: FIELD=VALUE (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Delete a previous prior in --out and start afresh."),
 ) -> None:
     """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints)."""
-    from xted.data import load
-    from xted.data import split_heldout
+    from xted.data import load, split_heldout
     from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior
 
     data, _ = split_heldout(load(target), heldout_episodes)
     config = apply_overrides(make_preset(preset, data.observation_dim, data.action_dim, seed=seed), overrides)
+    if force:
+        discard_run(out, ("prior.json",))
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
     typer.echo(f"prior trained to step {steps} in {out}")
 
@@ -42,34 +47,36 @@ def edit(
     prior: Path = typer.Option(..., "--prior", help="Prior folder (xted train)."),
     source: str = typer.Option(..., "--source", help="Source dataset (path or shipped name)."),
     out: str = typer.Option(..., "--out", help="Edited dataset; the format follows the path."),
-    kappa: float = typer.Option(0.5, "--kappa", help="Noise to step k = kappa*K, then denoise k steps."),
-    iterations: int = typer.Option(1, "--iterations", help="Repeated noise+denoise rounds."),
-    hold_last: bool = typer.Option(False, "--hold-last", help="Hold the last transition of each window too."),
-    guidance: float = typer.Option(1.0, "--guidance", help="Classifier-free return guidance weight."),
-    sampler: str = typer.Option("ddpm", "--sampler", help="ddpm or ddim."),
-    sampler_steps: Optional[int] = typer.Option(None, "--sampler-steps", help="DDIM steps (default k)."),
-    seed: int = typer.Option(0, "--seed"),
+    kappa: float = typer.Option(EditConfig.kappa, "--kappa", min=0.0, max=1.0,
+                                help="Noise to step k = kappa*K, then denoise k steps."),
+    iterations: int = typer.Option(EditConfig.iterations, "--iterations", min=1, help="Repeated noise+denoise rounds."),
+    hold_last: bool = typer.Option(EditConfig.hold_last, "--hold-last",
+                                   help="Hold the last transition of each window too."),
+    guidance: float = typer.Option(EditConfig.guidance, "--guidance", min=0.0,
+                                   help="Classifier-free return guidance weight."),
+    sampler: str = typer.Option(EditConfig.sampler, "--sampler", help="ddpm or ddim."),
+    sampler_steps: Optional[int] = typer.Option(EditConfig.sampler_steps, "--sampler-steps", min=1,
+                                                help="DDIM steps (default k)."),
+    seed: int = typer.Option(0, "--seed", min=0),
     relabel_rewards_from: Optional[str] = typer.Option(
         None, "--relabel-rewards",
         help="Target dataset to fit a reward proxy r(s, a, s') to; it gives every edited transition its reward."),
-    reward_proxy_steps: int = typer.Option(20_000, "--reward-proxy-steps", help="Training steps of that proxy."),
+    reward_proxy_steps: int = typer.Option(ProxyConfig.steps, "--reward-proxy-steps", min=1,
+                                           help="Training steps of that proxy."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
-    from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards
+    from xted.analysis import fit_reward_proxy, relabel_rewards
     from xted.data import formats, load
-    from xted.diffusion.editor import EditConfig, edit_dataset
+    from xted.diffusion.editor import edit_dataset
     from xted.diffusion.prior import load_prior
     from xted.envs import check_same_env, dataset_env
 
     formats.check_writable(formats.target(out), overwrite=force)
-    out_path = formats.target(out).path.resolve()
-    for role, name in (("--source", source), ("--relabel-rewards", relabel_rewards_from)):
-        if name is not None and formats.locate(name).path.resolve() == out_path:
-            raise InputError(f"output {out} is the {role} input {name}; inputs are never overwritten, "
-                             f"choose another output path")
+    formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
+                                              "--prior": prior})
     config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, guidance=guidance,
                         sampler=sampler, sampler_steps=sampler_steps, seed=seed)
     source_data = load(source)
@@ -98,11 +105,12 @@ DEMO_HELDOUT_EPISODES = 2  # the shipped prior was trained with these episodes h
 @app.command()
 def demo(
     train_prior_first: bool = typer.Option(False, "--train", help="Train the cpu-preset prior from scratch first."),
-    steps: int = typer.Option(0, "--steps", help="Training steps with --train (default: the shipped prior's)."),
+    steps: int = typer.Option(0, "--steps", min=0, help="Training steps with --train (default: the shipped prior's)."),
     out: Path = typer.Option(Path("xted-demo"), "--out", help="Folder for the demo's prior and edited data."),
-    proxy_steps: int = typer.Option(20_000, "--proxy-steps", help="Training steps of the learned proxy (0: skip it)."),
+    proxy_steps: int = typer.Option(ProxyConfig.steps, "--proxy-steps", min=0,
+                                    help="Training steps of the learned proxy (0: skip it)."),
     gap: str = typer.Option("gravity", "--gap", help="The shipped source to edit: gravity, friction or thigh."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = typer.Option(0, "--seed", min=0),
 ) -> None:
     """Edit the shipped 2x-gravity halfcheetah source with the shipped prior; replay it in the simulator.
 
@@ -111,16 +119,14 @@ def demo(
     the paper's learned dynamics proxy, and compared for task content (forward-velocity correlation).
     The recorded rewards are replayed too: the prior edits them as well.
     ``--gap thigh`` edits the source whose gap is large enough for editing to lower that error."""
-    from xted.analysis import ProxyConfig, edit_report, fit_proxy, simulator_measures
+    from xted.analysis import edit_report, fit_proxy, simulator_measures
     from xted.data import formats, load, shipped, split_heldout
-    from xted.diffusion.editor import EditConfig, edit_dataset
     from xted.diffusion.config import PriorConfig
+    from xted.diffusion.editor import edit_dataset
     from xted.diffusion.prior import load_prior
     from xted.diffusion.training import train_prior
     from xted.envs import PAPER_GAPS, parse_domain
 
-    if proxy_steps < 0:
-        raise InputError(f"--proxy-steps must be >= 0, got {proxy_steps}")
     if gap not in PAPER_GAPS["halfcheetah"]:
         raise InputError(f"--gap must be one of {', '.join(PAPER_GAPS['halfcheetah'])}, got {gap!r}")
     target, source = load("halfcheetah-medium-replay"), load(f"halfcheetah-{gap}")

@@ -8,7 +8,6 @@ from typing import Annotated, Any
 import typer
 
 from xted.data import formats, shipped
-from xted.errors import InputError
 
 app = typer.Typer(
     help="Inspect, convert and list datasets (.npz, D4RL-style .hdf5/.h5, Minari).",
@@ -41,8 +40,7 @@ def convert(
 ) -> None:
     """Convert a dataset between formats; the output appears whole or not at all."""
     source, destination = formats.locate(src), formats.target(dst)
-    if source.path.resolve() == destination.path.resolve():
-        raise InputError(f"output {dst} is the input {src}; choose another output path")
+    formats.check_apart(destination, {"source": src})
     formats.check_writable(destination, overwrite=force)
     dataset = formats.load(source.path)
     formats.save(dataset, dst, overwrite=force)
@@ -58,9 +56,9 @@ def make(
     level: Annotated[str, typer.Option("--level", help="random, medium, medium-replay, expert, medium-expert, source.")],
     out: Annotated[str, typer.Option("--out", help=DEST_HELP)],
     gap: Annotated[str | None, typer.Option("--gap", help="Domain gap (source data), e.g. gravity or thigh=3.")] = None,
-    transitions: Annotated[int, typer.Option("--transitions", help="Number of transitions.")] = 20_000,
+    transitions: Annotated[int, typer.Option("--transitions", min=1, help="Number of transitions.")] = 20_000,
     run: Annotated[str | None, typer.Option("--run", help="online run folder (xted online train); default: shipped policies.")] = None,
-    seed: Annotated[int, typer.Option("--seed")] = 0,
+    seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
 ) -> None:
     """Make a D4RL-style dataset by running behaviour policies in a domain."""

@@ -9,6 +9,8 @@ from typing import Optional
 import typer
 
 from xted.envs import parse_domain
+from xted.resume import discard_run
+from xted.rl.configs import ONLINE_ALGORITHM_NAMES, OnlineRunConfig
 
 app = typer.Typer(help="Online RL (SAC, TD3) for behaviour policies and domain-gap measurements.",
                   no_args_is_help=True)
@@ -19,25 +21,31 @@ def train(
     env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain gap to train in (default: target)."),
     out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed (same settings)."),
-    algo: str = typer.Option("sac", "--algo", help="sac or td3."),
-    steps: int = typer.Option(1_000_000, "--steps", help="Total environment steps (one update each)."),
-    checkpoint_every: int = typer.Option(10_000, "--checkpoint-every",
+    algo: str = typer.Option(OnlineRunConfig.algo, "--algo", help=" or ".join(ONLINE_ALGORITHM_NAMES) + "."),
+    steps: int = typer.Option(OnlineRunConfig.total_steps, "--steps", min=1,
+                              help="Total environment steps (one update each)."),
+    checkpoint_every: int = typer.Option(OnlineRunConfig.checkpoint_every, "--checkpoint-every", min=1,
                                          help="Steps between checkpoints with a greedy evaluation."),
-    start_steps: int = typer.Option(5_000, "--start-steps", help="Uniform-random steps before learning."),
-    eval_episodes: int = typer.Option(10, "--eval-episodes"),
-    seed: int = typer.Option(0, "--seed"),
+    start_steps: int = typer.Option(OnlineRunConfig.start_steps, "--start-steps", min=0,
+                                    help="Uniform-random steps before learning."),
+    eval_episodes: int = typer.Option(OnlineRunConfig.eval_episodes, "--eval-episodes", min=1),
+    seed: int = typer.Option(OnlineRunConfig.seed, "--seed", min=0),
     stop_at_return: Optional[float] = typer.Option(
-        None, "--stop-at-return", help="End the run at the first greedy evaluation whose mean return reaches this."),
+        OnlineRunConfig.stop_at_return, "--stop-at-return",
+        help="End the run at the first greedy evaluation whose mean return reaches this."),
+    force: bool = typer.Option(False, "--force", help="Delete a previous run in --out and start afresh."),
 ) -> None:
     """Train in a domain; checkpoints, evaluations (evals.csv) and the replay buffer go to --out.
 
     An interrupted run continues from its last checkpoint when started again with the same
     settings (a larger --steps extends it)."""
-    from xted.rl.online import OnlineRunConfig, read_evals, train_online
+    from xted.rl.online import read_evals, train_online
 
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
                              stop_at_return=stop_at_return)
+    if force:
+        discard_run(out, ("run.json",))
     train_online(parse_domain(env, gap), out, config)
     last = read_evals(out)[-1]
     print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score")}}))
@@ -48,8 +56,8 @@ def evaluate_policy(
     policy: Path = typer.Argument(..., help="Actor checkpoint (.msgpack)."),
     env: str = typer.Option(..., "--env"),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: target)."),
-    episodes: int = typer.Option(10, "--episodes"),
-    seed: int = typer.Option(0, "--seed"),
+    episodes: int = typer.Option(10, "--episodes", min=1),
+    seed: int = typer.Option(0, "--seed", min=0),
     as_json: bool = typer.Option(False, "--json"),
 ) -> None:
     """Greedy return of a policy checkpoint in a domain."""

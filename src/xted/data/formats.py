@@ -128,6 +128,22 @@ def check_writable(location: Location, overwrite: bool) -> None:
         raise InputError(f"{path}: exists (use --force / overwrite=True to replace it)")
 
 
+def check_apart(output: Location, inputs: dict[str, str | os.PathLike | None]) -> None:
+    """Refuse an output that is one of the inputs (``{role: path}``) or lies inside an input's
+    folder (a Minari dataset, a prior): inputs are never modified."""
+    out = output.path.resolve()
+    for role, given in inputs.items():
+        if given is None:
+            continue
+        path = Path(given).resolve() if Path(given).is_dir() else locate(given).path.resolve()
+        if out == path:
+            raise InputError(f"output {output.path} is the {role} input {given}; inputs are never overwritten, "
+                             f"choose another output path")
+        if path.is_dir() and out.is_relative_to(path):
+            raise InputError(f"output {output.path} lies inside the {role} input folder {given}; inputs are "
+                             f"never modified, choose a path outside it")
+
+
 def minari_root() -> Path:
     """The local Minari root, as Minari itself resolves it."""
     env = os.environ.get("MINARI_DATASETS_PATH")
@@ -318,12 +334,15 @@ def _python_scalar(value: Any) -> Any:
 
 def _write_hdf5(dataset: Dataset, location: Location) -> None:
     with atomic_path(location.path, location.path.suffix) as tmp:
-        with h5py.File(tmp, "w") as file:
-            for name, value in _field_arrays(dataset).items():
-                file.create_dataset(name, data=value)
-            for name, value in dataset.extras.items():
-                file.create_dataset(f"{_HDF5_EXTRAS}/{name}", data=value)
-            file.attrs["metadata"] = json.dumps(dataset.metadata)
+        try:
+            with h5py.File(tmp, "w") as file:
+                for name, value in _field_arrays(dataset).items():
+                    file.create_dataset(name, data=value)
+                for name, value in dataset.extras.items():
+                    file.create_dataset(f"{_HDF5_EXTRAS}/{name}", data=value)
+                file.attrs["metadata"] = json.dumps(dataset.metadata)
+        except RuntimeError as err:  # h5py reports a failed write (a full disk) as a RuntimeError
+            raise OSError(f"HDF5 write failed ({err})") from None
 
 
 # -------------------------------------------------------------------- minari

@@ -1,24 +1,103 @@
-"""The prior's configuration: one flat, validating record (every field a ``--set FIELD=VALUE``) and
-the named presets."""
+"""The diffusion configurations: the denoiser's architecture, the prior's one flat, validating
+record (every field a ``--set FIELD=VALUE``) with its named presets, and how to edit. Plain
+Python: the CLI takes its defaults from here without loading JAX."""
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import jax.numpy as jnp
-
-from xted.diffusion.denoiser import ARCHITECTURES, DenoiserConfig
 from xted.errors import InputError
 
-# Per-sample loss weight as a function of the signal-to-noise ratio of the sampled timestep.
-LOSS_WEIGHTS: dict[str, Callable[[jnp.ndarray], jnp.ndarray]] = {
-    "uniform": jnp.ones_like,
-    "min_snr": lambda snr: jnp.minimum(snr, 5.0) / snr,  # Min-SNR-5 (Hang et al. 2023), eps-prediction
-}
+# Per-sample loss weightings by the signal-to-noise ratio of the sampled timestep (xted.diffusion.objective).
+LOSS_WEIGHTINGS = ("uniform", "min_snr")
+
+STREAMS = ("state", "action", "reward")
+
+# Cross-attention wiring: (updated stream, streams it attends to), paper main text Eq. 2-3.
+# State and action exchange information both ways; the reward stream queries the concatenation
+# (along the token axis, 2H keys) of state and action, and nothing attends to the reward stream,
+# so rewards never feed back into states or actions. All cross blocks read the self-attended
+# representations from *before* any cross block (h'_r draws on h_s and h_a, not h'_s and h'_a),
+# so the three updates are simultaneous. (The appendix formula updates x_kv instead of x_q; that
+# contradicts the stated intent and is not followed.)
+CROSS_WIRING: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("state", ("action",)),
+    ("action", ("state",)),
+    ("reward", ("state", "action")),
+)
+
+
+# The paper's architecture ablations (its Tables 6-7), all in this module's one code path:
+# "xted" the model above; "causal" the same with every attention causal in time (CM);
+# "feature_concat" one token per step holding [s, a, r] (FC); "temporal_concat" the 2H or 3H
+# element tokens s_0, a_0, r_0, s_1, ... in one sequence at the state stream's width (TC).
+# FC and TC run ``state_blocks + 1`` self-attention blocks: the xTED state stream's depth.
+# "inverse_dynamics" diffuses states only (one stream, ``state_blocks + 1`` blocks) and fills in
+# actions and rewards with inverse models trained beside it (Inv, :class:`InverseDynamics`).
+# "temporal_unet" is the paper's non-transformer baseline (its appendix comparison): Diffuser's
+# temporal U-Net over the [s, a, r] sequence (see :func:`_temporal_unet`).
+ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat", "inverse_dynamics", "temporal_unet")
+
+
+@dataclass(frozen=True)
+class DenoiserConfig:
+    """Architecture. Stream width = ``width_override`` if set, else
+    ``max(min_width, round(width_multiplier * element_dim))`` ("joint", the FC token, has the
+    summed dims of the streams)."""
+
+    state_dim: int
+    action_dim: int
+    use_reward: bool = True
+    width_multiplier: float = 16
+    min_width: int = 0
+    width_override: int | None = None
+    state_blocks: int = 2
+    action_blocks: int = 2
+    reward_blocks: int = 1
+    num_heads: int = 4
+    mlp_ratio: int = 4
+    cond_dim: int = 128
+    return_condition: bool = False
+    horizon: int = 20
+    dtype: str = "float32"
+    architecture: str = "xted"
+
+    @property
+    def streams(self) -> tuple[str, ...]:
+        return STREAMS if self.use_reward else STREAMS[:2]
+
+    @property
+    def diffused_streams(self) -> tuple[str, ...]:
+        """The streams the denoiser predicts noise for (Inv: states only; its inverse models give the rest)."""
+        return ("state",) if self.architecture == "inverse_dynamics" else self.streams
+
+    @property
+    def cross_wiring(self) -> tuple[tuple[str, tuple[str, ...]], ...]:
+        """:data:`CROSS_WIRING` restricted to this model's streams."""
+        present = set(self.streams)
+        return tuple((u, kv) for u, kv in CROSS_WIRING if u in present and present.issuperset(kv))
+
+    def element_dim(self, stream: str) -> int:
+        if stream == "joint":
+            return sum(map(self.element_dim, self.streams))
+        return {"state": self.state_dim, "action": self.action_dim, "reward": 1}[stream]
+
+    def width(self, stream: str) -> int:
+        if self.width_override is not None:
+            return self.width_override
+        return max(self.min_width, round(self.width_multiplier * self.element_dim(stream)))
+
+    def heads(self, stream: str) -> int:
+        return math.gcd(self.num_heads, self.width(stream))
+
+    def blocks(self, stream: str) -> int:
+        return {"state": self.state_blocks, "action": self.action_blocks, "reward": self.reward_blocks}[stream]
+
 
 _DENOISER_FIELDS = tuple(f.name for f in dataclasses.fields(DenoiserConfig))
 
@@ -54,7 +133,7 @@ class PriorConfig(DenoiserConfig):
             (0.0 <= self.ema_decay < 1.0, f"ema_decay must be in [0, 1), got {self.ema_decay}"),
             (0.0 <= self.condition_dropout <= 1.0,
              f"condition_dropout must be in [0, 1], got {self.condition_dropout}"),
-            (self.loss_weighting in LOSS_WEIGHTS, f"loss_weighting must be one of {sorted(LOSS_WEIGHTS)}"),
+            (self.loss_weighting in LOSS_WEIGHTINGS, f"loss_weighting must be one of {list(LOSS_WEIGHTINGS)}"),
             (self.architecture in ARCHITECTURES,
              f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
@@ -77,6 +156,44 @@ class PriorConfig(DenoiserConfig):
         if unknown:
             raise InputError(f"PriorConfig: unknown fields {sorted(unknown)}")
         return cls(**data)
+
+
+@dataclass(frozen=True)
+class EditConfig:
+    """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
+    ``target_return``, used only with a return-conditioned prior. ``sampler_steps``: DDIM only
+    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None."""
+
+    kappa: float = 0.5
+    iterations: int = 1
+    hold_last: bool = False
+    guidance: float = 1.0
+    target_return: float = 0.9
+    sampler: str = "ddpm"
+    sampler_steps: int | None = None
+    clip_denoised: float | None = None
+    batch_size: int = 1024
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        checks = [
+            (0.0 <= self.kappa <= 1.0, f"kappa must be in [0, 1], got {self.kappa}"),
+            (self.iterations >= 1, f"iterations must be >= 1, got {self.iterations}"),
+            (self.sampler in ("ddpm", "ddim"), f"sampler must be 'ddpm' or 'ddim', got {self.sampler!r}"),
+            (self.sampler_steps is None or self.sampler == "ddim", "sampler_steps is for the ddim sampler only"),
+            (self.sampler_steps is None or self.sampler_steps >= 1,
+             f"sampler_steps must be >= 1, got {self.sampler_steps}"),
+            (self.clip_denoised is None or self.clip_denoised > 0,
+             f"clip_denoised must be > 0, got {self.clip_denoised}"),
+            (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise InputError(f"EditConfig: {message}")
+
+    def noise_steps(self, num_timesteps: int) -> int:
+        """``k = round(kappa * K)``."""
+        return int(round(self.kappa * num_timesteps))
 
 
 def _paper(state_dim: int, action_dim: int) -> PriorConfig:

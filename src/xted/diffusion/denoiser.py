@@ -17,93 +17,12 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-STREAMS = ("state", "action", "reward")
-
-# Cross-attention wiring: (updated stream, streams it attends to), paper main text Eq. 2-3.
-# State and action exchange information both ways; the reward stream queries the concatenation
-# (along the token axis, 2H keys) of state and action, and nothing attends to the reward stream,
-# so rewards never feed back into states or actions. All cross blocks read the self-attended
-# representations from *before* any cross block (h'_r draws on h_s and h_a, not h'_s and h'_a),
-# so the three updates are simultaneous. (The appendix formula updates x_kv instead of x_q; that
-# contradicts the stated intent and is not followed.)
-CROSS_WIRING: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("state", ("action",)),
-    ("action", ("state",)),
-    ("reward", ("state", "action")),
-)
-
-
-# The paper's architecture ablations (its Tables 6-7), all in this module's one code path:
-# "xted" the model above; "causal" the same with every attention causal in time (CM);
-# "feature_concat" one token per step holding [s, a, r] (FC); "temporal_concat" the 2H or 3H
-# element tokens s_0, a_0, r_0, s_1, ... in one sequence at the state stream's width (TC).
-# FC and TC run ``state_blocks + 1`` self-attention blocks: the xTED state stream's depth.
-# "inverse_dynamics" diffuses states only (one stream, ``state_blocks + 1`` blocks) and fills in
-# actions and rewards with inverse models trained beside it (Inv, :class:`InverseDynamics`).
-# "temporal_unet" is the paper's non-transformer baseline (its appendix comparison): Diffuser's
-# temporal U-Net over the [s, a, r] sequence (see :func:`_temporal_unet`).
-ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat", "inverse_dynamics", "temporal_unet")
-
-
-@dataclass(frozen=True)
-class DenoiserConfig:
-    """Architecture. Stream width = ``width_override`` if set, else
-    ``max(min_width, round(width_multiplier * element_dim))`` ("joint", the FC token, has the
-    summed dims of the streams)."""
-
-    state_dim: int
-    action_dim: int
-    use_reward: bool = True
-    width_multiplier: float = 16
-    min_width: int = 0
-    width_override: int | None = None
-    state_blocks: int = 2
-    action_blocks: int = 2
-    reward_blocks: int = 1
-    num_heads: int = 4
-    mlp_ratio: int = 4
-    cond_dim: int = 128
-    return_condition: bool = False
-    horizon: int = 20
-    dtype: str = "float32"
-    architecture: str = "xted"
-
-    @property
-    def streams(self) -> tuple[str, ...]:
-        return STREAMS if self.use_reward else STREAMS[:2]
-
-    @property
-    def diffused_streams(self) -> tuple[str, ...]:
-        """The streams the denoiser predicts noise for (Inv: states only; its inverse models give the rest)."""
-        return ("state",) if self.architecture == "inverse_dynamics" else self.streams
-
-    @property
-    def cross_wiring(self) -> tuple[tuple[str, tuple[str, ...]], ...]:
-        """:data:`CROSS_WIRING` restricted to this model's streams."""
-        present = set(self.streams)
-        return tuple((u, kv) for u, kv in CROSS_WIRING if u in present and present.issuperset(kv))
-
-    def element_dim(self, stream: str) -> int:
-        if stream == "joint":
-            return sum(map(self.element_dim, self.streams))
-        return {"state": self.state_dim, "action": self.action_dim, "reward": 1}[stream]
-
-    def width(self, stream: str) -> int:
-        if self.width_override is not None:
-            return self.width_override
-        return max(self.min_width, round(self.width_multiplier * self.element_dim(stream)))
-
-    def heads(self, stream: str) -> int:
-        return math.gcd(self.num_heads, self.width(stream))
-
-    def blocks(self, stream: str) -> int:
-        return {"state": self.state_blocks, "action": self.action_blocks, "reward": self.reward_blocks}[stream]
+from xted.diffusion.config import STREAMS, DenoiserConfig
 
 
 def _layer_norm(x: jnp.ndarray, dtype: jnp.dtype) -> jnp.ndarray:

@@ -30,48 +30,17 @@ import numpy as np
 
 from xted.data import Dataset
 from xted.data.windows import tile_episodes
-from xted.diffusion.denoiser import Denoiser, DenoiserConfig, apply_inverse
-from xted.diffusion.schedule import Schedule, ddim_step, ddim_timesteps, ddpm_step, q_sample
+from xted.diffusion.config import DenoiserConfig, EditConfig
+from xted.diffusion.denoiser import Denoiser, apply_inverse
 from xted.diffusion.prior import Prior
+from xted.diffusion.schedule import (
+    Schedule,
+    ddim_step,
+    ddim_timesteps,
+    ddpm_step,
+    q_sample,
+)
 from xted.errors import InputError
-
-
-@dataclass(frozen=True)
-class EditConfig:
-    """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
-    ``target_return``, used only with a return-conditioned prior. ``sampler_steps``: DDIM only
-    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None."""
-
-    kappa: float = 0.5
-    iterations: int = 1
-    hold_last: bool = False
-    guidance: float = 1.0
-    target_return: float = 0.9
-    sampler: str = "ddpm"
-    sampler_steps: int | None = None
-    clip_denoised: float | None = None
-    batch_size: int = 1024
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        checks = [
-            (0.0 <= self.kappa <= 1.0, f"kappa must be in [0, 1], got {self.kappa}"),
-            (self.iterations >= 1, f"iterations must be >= 1, got {self.iterations}"),
-            (self.sampler in ("ddpm", "ddim"), f"sampler must be 'ddpm' or 'ddim', got {self.sampler!r}"),
-            (self.sampler_steps is None or self.sampler == "ddim", "sampler_steps is for the ddim sampler only"),
-            (self.sampler_steps is None or self.sampler_steps >= 1,
-             f"sampler_steps must be >= 1, got {self.sampler_steps}"),
-            (self.clip_denoised is None or self.clip_denoised > 0,
-             f"clip_denoised must be > 0, got {self.clip_denoised}"),
-            (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
-        ]
-        for ok, message in checks:
-            if not ok:
-                raise InputError(f"EditConfig: {message}")
-
-    def noise_steps(self, num_timesteps: int) -> int:
-        """``k = round(kappa * K)``."""
-        return int(round(self.kappa * num_timesteps))
 
 
 @dataclass(frozen=True)

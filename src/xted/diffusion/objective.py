@@ -17,9 +17,15 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from xted.diffusion.config import LOSS_WEIGHTS, PriorConfig
+from xted.diffusion.config import PriorConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse, init_params
 from xted.diffusion.schedule import Schedule, cosine_schedule, q_sample
+
+# Per-sample loss weight as a function of the signal-to-noise ratio of the sampled timestep.
+LOSS_WEIGHTS: dict[str, Callable[[jnp.ndarray], jnp.ndarray]] = {
+    "uniform": jnp.ones_like,
+    "min_snr": lambda snr: jnp.minimum(snr, 5.0) / snr,  # Min-SNR-5 (Hang et al. 2023), eps-prediction
+}
 
 @flax.struct.dataclass
 class TrainState:

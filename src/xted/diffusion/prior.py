@@ -89,12 +89,20 @@ def load_prior(out_dir: str | Path) -> Prior:
     meta = read_prior_json(meta_path)
     config = PriorConfig.from_dict(meta["config"])
     if (out_dir / EXPORTED_PARAMS).exists():
-        payload = flax.serialization.msgpack_restore((out_dir / EXPORTED_PARAMS).read_bytes())
-        params, step = payload["params"], int(payload["step"])
+        try:
+            payload = flax.serialization.msgpack_restore((out_dir / EXPORTED_PARAMS).read_bytes())
+            params, step = payload["params"], int(payload["step"])
+        except (ValueError, KeyError, TypeError) as err:
+            raise InputError(f"{out_dir / EXPORTED_PARAMS}: unreadable prior parameters ({err})") from None
     else:
         from xted.diffusion.checkpoint import restore_ema  # a training folder: Orbax and the train state
 
-        params, step = restore_ema(out_dir, config)
+        try:
+            params, step = restore_ema(out_dir, config)
+        except InputError:
+            raise
+        except Exception as err:  # Orbax's errors for a damaged checkpoint have no common type
+            raise InputError(f"{out_dir}: unreadable prior checkpoint ({type(err).__name__}: {err})") from None
     return Prior(
         config=config,
         normalizer=Normalizer.from_dict(meta["normalizer"]),

@@ -6,7 +6,6 @@ setting uses 1e-4, available through ``lr``.
 
 from __future__ import annotations
 
-import dataclasses
 
 import flax
 import jax
@@ -14,18 +13,8 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.config import check_fields
+from xted.rl.configs import BCConfig
 from xted.rl.networks import DeterministicPolicy
-
-
-@dataclasses.dataclass(frozen=True)
-class BCConfig:
-    hidden: tuple[int, ...] = (256, 256)
-    lr: float = 3e-4
-    batch_size: int = 256
-
-    def __post_init__(self) -> None:
-        check_fields(self)
 
 
 @flax.struct.dataclass

@@ -12,7 +12,6 @@ rewards the backbone trains on (after IQL's optional reward scaling), in log-pro
 
 from __future__ import annotations
 
-import dataclasses
 from functools import partial
 from typing import Sequence
 
@@ -23,26 +22,10 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
-from xted.config import check_fields
 from xted.nn import MLP
-from xted.rl.iql import IQLConfig
+from xted.rl.configs import DARAConfig
 
 CLASSIFIER_INPUTS = ("observations", "actions", "next_observations")
-
-
-@dataclasses.dataclass(frozen=True)
-class DARAConfig:
-    eta: float = 0.1
-    clip: float = 10.0
-    classifier_steps: int = 5000
-    classifier_hidden: tuple[int, ...] = (256, 256)
-    classifier_lr: float = 3e-4
-    classifier_batch: int = 256
-    input_noise: float = 0.1
-    iql: IQLConfig = IQLConfig()
-
-    def __post_init__(self) -> None:
-        check_fields(self)
 
 
 class DomainClassifiers(nn.Module):

@@ -11,7 +11,6 @@ reference's locomotion scaling, ``1000 / (max episode return - min episode retur
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from functools import partial
 from typing import Sequence
@@ -24,27 +23,9 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
-from xted.config import check_fields
+from xted.rl.configs import IQLConfig
 from xted.nn import MLP
 from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, Critic, ValueNet
-
-
-@dataclasses.dataclass(frozen=True)
-class IQLConfig:
-    hidden: tuple[int, ...] = (256, 256)
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    value_lr: float = 3e-4
-    discount: float = 0.99
-    tau: float = 0.005
-    expectile: float = 0.7
-    temperature: float = 3.0
-    max_weight: float = 100.0
-    batch_size: int = 256
-    normalize_rewards: bool = False
-
-    def __post_init__(self) -> None:
-        check_fields(self)
 
 
 class GaussianPolicy(nn.Module):

@@ -34,10 +34,11 @@ from xted.atomic import atomic_path
 from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.resume import resume_or_record
+from xted.rl.configs import OnlineRunConfig
 from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import Actor, save_actor
-from xted.rl.sac import SACConfig, init_sac, sac_update
-from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
+from xted.rl.sac import init_sac, sac_update
+from xted.rl.td3bc import init_td3bc, td3bc_update
 
 BUFFER_FIELDS = ("observations", "actions", "rewards", "next_observations", "terminals", "timeouts")
 BATCH_FIELDS = ("observations", "actions", "rewards", "next_observations", "terminals")
@@ -53,44 +54,6 @@ ONLINE_ALGORITHMS = {
     "sac": OnlineAlgorithm(init_sac, sac_update, "tanh_gaussian"),
     "td3": OnlineAlgorithm(init_td3bc, td3bc_update, "deterministic"),
 }
-
-
-@dataclasses.dataclass(frozen=True)
-class OnlineRunConfig:
-    algo: str = "sac"
-    total_steps: int = 1_000_000
-    start_steps: int = 5_000  # uniform-random actions before learning starts
-    checkpoint_every: int = 10_000
-    eval_episodes: int = 10
-    block: int = 50  # environment steps (then as many updates) per jitted call
-    exploration_noise: float = 0.1  # TD3's Gaussian action noise
-    seed: int = 0
-    stop_at_return: float | None = None  # end the run at the first greedy evaluation that reaches this
-    sac: SACConfig = SACConfig()
-    td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
-
-    def __post_init__(self):
-        if self.algo not in ONLINE_ALGORITHMS:
-            raise InputError(f"unknown online algorithm {self.algo!r}; known: {', '.join(ONLINE_ALGORITHMS)}")
-        for name in ("total_steps", "checkpoint_every", "eval_episodes", "block"):
-            if getattr(self, name) <= 0:
-                raise InputError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.start_steps < 0 or self.exploration_noise < 0:
-            raise InputError("start_steps and exploration_noise must be >= 0")
-        if self.td3.behaviour_cloning:
-            raise InputError("online TD3 has no behaviour data to clone: td3.behaviour_cloning must be False")
-
-    @property
-    def agent(self) -> SACConfig | TD3BCConfig:
-        return self.sac if self.algo == "sac" else self.td3
-
-    def fingerprint(self) -> dict:
-        """What makes two runs the same run: everything but how far it goes."""
-        fields = json.loads(json.dumps(dataclasses.asdict(self)))
-        fields.pop("total_steps")
-        fields.pop("stop_at_return")
-        fields.pop("sac" if self.algo == "td3" else "td3")
-        return fields
 
 
 def read_evals(run: str | Path) -> list[dict]:

@@ -7,7 +7,6 @@ stops at true terminals.
 
 from __future__ import annotations
 
-import dataclasses
 from functools import partial
 
 import flax
@@ -16,21 +15,8 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.config import check_fields
+from xted.rl.configs import SACConfig
 from xted.rl.networks import Critic, TanhGaussianPolicy, sample_tanh_gaussian
-
-
-@dataclasses.dataclass(frozen=True)
-class SACConfig:
-    hidden: tuple[int, ...] = (256, 256)
-    learning_rate: float = 3e-4
-    discount: float = 0.99
-    tau: float = 0.005
-    batch_size: int = 256
-    init_temperature: float = 1.0
-
-    def __post_init__(self) -> None:
-        check_fields(self)
 
 
 @flax.struct.dataclass

@@ -12,7 +12,6 @@ online learner of :mod:`xted.rl.online`.
 
 from __future__ import annotations
 
-import dataclasses
 from functools import partial
 
 import flax
@@ -21,26 +20,8 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.config import check_fields
+from xted.rl.configs import TD3BCConfig
 from xted.rl.networks import Critic, DeterministicPolicy
-
-
-@dataclasses.dataclass(frozen=True)
-class TD3BCConfig:
-    hidden: tuple[int, ...] = (256, 256)
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    discount: float = 0.99
-    tau: float = 0.005
-    alpha: float = 2.5
-    policy_noise: float = 0.2
-    noise_clip: float = 0.5
-    policy_delay: int = 2
-    batch_size: int = 256
-    behaviour_cloning: bool = True
-
-    def __post_init__(self) -> None:
-        check_fields(self)
 
 
 @flax.struct.dataclass

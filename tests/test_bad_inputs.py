@@ -1,0 +1,311 @@
+"""The bad-input table (docs/bad_inputs.md): every misuse tried, each a row here and a test.
+
+A row builds its inputs in an empty workspace and runs one ``xted`` command. It holds when the
+command exits with the row's code, the message names what is wrong (the row's phrase), no
+traceback is printed, and the workspace afterwards holds exactly the files it held before, each
+unchanged: inputs are never modified and nothing partial is left.
+
+``python tests/test_bad_inputs.py`` runs every row and prints the markdown table of the answers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import dataclasses
+import hashlib
+import io
+import os
+import resource
+import signal
+import subprocess
+import sys
+import tempfile
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import build_dataset
+
+import xted
+from xted.cli.main import main
+from xted.data import formats, shipped
+
+DOC = Path(__file__).parent.parent / "docs" / "bad_inputs.md"
+HC_PRIOR = "halfcheetah-medium-replay-cpu"
+CLONE_NEWUSER = 0x10000000
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    name: str
+    what: str  # the misuse, in words
+    build: Callable[[Path], list[str]]  # makes the inputs in the workspace; returns the xted arguments
+    says: str  # a phrase the answer must contain (case-insensitive)
+    limit: str | None = None  # run in a subprocess as an unprivileged user ("read_only") or with a file-size cap
+    code: int = 2
+
+
+def _tiny(ws: Path, name: str = "tiny.npz", **kwargs) -> str:
+    path = ws / name
+    formats.save(build_dataset(**kwargs), path)
+    return str(path)
+
+
+def _arrays(ws: Path, name: str, **changes) -> str:
+    data = build_dataset(lengths=(30, 30))
+    arrays = {k: getattr(data, k) for k in ("observations", "actions", "rewards", "terminals", "timeouts")}
+    np.savez(ws / name, **{k: changes[k](v) if k in changes else v for k, v in arrays.items()})
+    return str(ws / name)
+
+
+def _with(array: np.ndarray, index: tuple, value: float) -> np.ndarray:
+    array = array.copy()
+    array[index] = value
+    return array
+
+
+def _halfcheetah_like(ws: Path, name: str, steps: int = 5000, env: str = "HalfCheetah-v5") -> str:
+    data = build_dataset(lengths=(steps,), obs_dim=17, act_dim=6)
+    formats.save(data.with_metadata(env=env), ws / name)
+    return str(ws / name)
+
+
+def _hdf5_text(ws: Path) -> str:
+    (ws / "notes.hdf5").write_text("these are my notes, not an HDF5 file\n")
+    return str(ws / "notes.hdf5")
+
+
+def _truncated_hdf5(ws: Path) -> str:
+    path = ws / "cut.hdf5"
+    formats.save(build_dataset(lengths=(200, 200)), path)
+    path.write_bytes(path.read_bytes()[:3000])
+    return str(path)
+
+
+def _online_run(ws: Path) -> Path:
+    run = ws / "run"
+    code = main(["online", "train", "--env", "halfcheetah", "--out", str(run), "--steps", "50", "--start-steps", "50",
+                 "--checkpoint-every", "50", "--eval-episodes", "1"])
+    assert code == 0
+    return run
+
+
+def _fake_prior(ws: Path, corrupt: str | None) -> str:
+    """A copy of the shipped prior, with one file spoiled: ``record`` (prior.json), ``params`` or None."""
+    import shutil
+
+    folder = ws / "prior"
+    shutil.copytree(shipped.prior_dir(HC_PRIOR), folder)
+    if corrupt == "record":
+        (folder / "prior.json").write_text("{ not json")
+    elif corrupt == "params":
+        params = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "prior.json")
+        biggest = max(params, key=lambda p: p.stat().st_size)
+        biggest.write_bytes(biggest.read_bytes()[:100])
+    return str(folder)
+
+
+POLICY_QUICK = ["--env", "halfcheetah", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1"]
+
+
+def _results_of_other_data(ws: Path) -> str:
+    """A --out folder holding a finished seed of a policy trained on another dataset."""
+    out = ws / "results"
+    assert main(["policy", "--target", _halfcheetah_like(ws, "other.npz", 1000), *POLICY_QUICK, "--out", str(out)]) == 0
+    return str(out)
+
+
+def _not_a_run(ws: Path) -> str:
+    folder = ws / "my-notes"
+    folder.mkdir()
+    (folder / "thesis.tex").write_text("chapter 1")
+    return str(folder)
+
+
+def _shipped_prior() -> str:
+    return str(shipped.prior_dir(HC_PRIOR))
+
+
+CASES = [
+    Case("missing-file", "a dataset path that does not exist", lambda ws: ["data", "info", str(ws / "nope.npz")],
+         "no such file"),
+    Case("csv-file", "a .csv file given as a dataset", lambda ws: (ws / "d.csv").write_text("a,b\n1,2\n") and
+         ["data", "info", str(ws / "d.csv")], "unknown extension"),
+    Case("text-as-hdf5", "a text file named .hdf5", lambda ws: ["data", "info", _hdf5_text(ws)], "hdf5"),
+    Case("truncated-hdf5", "an HDF5 file cut short", lambda ws: ["data", "info", _truncated_hdf5(ws)], "cut.hdf5"),
+    Case("empty-npz", "an .npz holding no arrays", lambda ws: np.savez(ws / "e.npz") or
+         ["data", "info", str(ws / "e.npz")], "e.npz"),
+    Case("zero-steps", "a dataset of zero steps", lambda ws: ["data", "info", _arrays(
+        ws, "z.npz", **{k: (lambda a: a[:0]) for k in ("observations", "actions", "rewards", "terminals", "timeouts")})],
+        "z.npz"),
+    Case("nan-observation", "NaN in the observations", lambda ws: ["data", "info", _arrays(
+        ws, "nan.npz", observations=lambda a: _with(a, (7, 1), np.nan))], "observations"),
+    Case("inf-reward", "an infinite reward", lambda ws: ["data", "info", _arrays(
+        ws, "inf.npz", rewards=lambda a: _with(a, (3,), np.inf))], "rewards"),
+    Case("length-mismatch", "actions one row shorter than observations", lambda ws: ["data", "info", _arrays(
+        ws, "short.npz", actions=lambda a: a[:-1])], "actions"),
+    Case("unknown-shipped-name", "a dataset name that is neither a file nor shipped",
+         lambda ws: ["data", "info", "halfcheetah-mediun"], "halfcheetah-mediun"),
+    Case("output-is-input", "convert a file onto itself", lambda ws: ["data", "convert", _tiny(ws), _tiny(ws)],
+         "is the source input"),
+    Case("output-inside-input", "convert a Minari dataset into a file inside its own folder",
+         lambda ws: formats.save(build_dataset(), ws / "mds") and ["data", "convert", str(ws / "mds"),
+                                                                    str(ws / "mds" / "copy.npz")], "inside"),
+    Case("edit-output-in-prior", "write the edit into the prior's folder",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, None), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "prior" / "edited.npz")], "inside"),
+    Case("output-exists", "an existing output without --force",
+         lambda ws: ["data", "convert", _tiny(ws), _tiny(ws, "old.npz", seed=1)], "exists"),
+    Case("output-folder-is-a-file", "an output path under a regular file",
+         lambda ws: ["data", "convert", _tiny(ws), str(Path(_tiny(ws, "f.npz")) / "out.npz")], "f.npz"),
+    Case("read-only-folder", "an output folder the user may not write",
+         lambda ws: (ws / "locked").mkdir(mode=0o555) or ["data", "convert", _tiny(ws), str(ws / "locked" / "o.npz")],
+         "permission denied", limit="read_only"),
+    Case("full-disk-npz", "the disk fills while an .npz is written (a file-size cap)",
+         lambda ws: ["data", "convert", _halfcheetah_like(ws, "big.hdf5", 20_000), str(ws / "copy.npz")],
+         "file too large", limit="file_size"),
+    Case("full-disk-hdf5", "the disk fills while an HDF5 file is written (a file-size cap)",
+         lambda ws: ["data", "convert", _halfcheetah_like(ws, "big.npz", 20_000), str(ws / "copy.hdf5")],
+         "file too large", limit="file_size"),
+    Case("edit-wrong-dims", "edit a 3-d source with a 17-d prior",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _tiny(ws), "--out", str(ws / "o.npz"),
+                     "--allow-env-mismatch"], "state_dim"),
+    Case("edit-other-env", "edit walker2d data with a halfcheetah prior (same dimensions)",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "w.npz", 100, "Walker2d-v5"),
+                     "--out", str(ws / "o.npz")], "walker2d"),
+    Case("edit-overwrites-input", "--out names the --relabel-rewards input, with --force",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100), "--out",
+                     _halfcheetah_like(ws, "t.npz", 100), "--relabel-rewards", str(ws / "t.npz"), "--force"],
+         "inputs are never overwritten"),
+    Case("edit-kappa-range", "--kappa 1.5", lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _tiny(ws),
+                                                         "--out", str(ws / "o.npz"), "--kappa", "1.5"], "--kappa"),
+    Case("edit-ddpm-sampler-steps", "--sampler-steps with the DDPM sampler",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz"), "--sampler-steps", "10"], "sampler_steps"),
+    Case("missing-prior", "--prior names no folder", lambda ws: ["edit", "--prior", str(ws / "no-prior"), "--source",
+                                                               _tiny(ws), "--out", str(ws / "o.npz")], "no-prior"),
+    Case("corrupt-prior-record", "a prior whose prior.json is not JSON",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "record"), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz")], "prior.json"),
+    Case("corrupt-prior-params", "a prior whose parameters file is truncated",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "params"), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz")], "prior"),
+    Case("train-one-step-episodes", "train a prior on one-step episodes",
+         lambda ws: ["train", "--target", _tiny(ws, lengths=(1,) * 40), "--out", str(ws / "p"), "--steps", "1"],
+         "horizon"),
+    Case("train-short-episodes", "train a prior on episodes shorter than the horizon (H = 20)",
+         lambda ws: ["train", "--target", _tiny(ws, lengths=(12, 15, 19)), "--out", str(ws / "p"), "--steps", "1"],
+         "horizon"),
+    Case("train-bool-override", "--set return_condition=tru (not a boolean)",
+         lambda ws: ["train", "--target", _tiny(ws), "--out", str(ws / "p"), "--set", "return_condition=tru"],
+         "not a boolean"),
+    Case("train-unknown-field", "--set a field the config does not have",
+         lambda ws: ["train", "--target", _tiny(ws), "--out", str(ws / "p"), "--set", "widht=3"], "widht"),
+    Case("train-zero-steps", "--steps 0", lambda ws: ["train", "--target", _tiny(ws), "--out", str(ws / "p"),
+                                                     "--steps", "0"], "--steps"),
+    Case("policy-other-env", "a halfcheetah target evaluated in walker2d",
+         lambda ws: ["policy", "--target", "halfcheetah-medium", "--env", "walker2d", "--steps", "10"], "walker2d"),
+    Case("policy-bad-seeds", "--seeds a,b", lambda ws: ["policy", "--target", _tiny(ws), "--env", "halfcheetah",
+                                                       "--seeds", "a,b"], "--seeds"),
+    Case("policy-other-results", "--out holds results of other data",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 900), *POLICY_QUICK,
+                     "--out", _results_of_other_data(ws)], "data:"),
+    Case("policy-force-not-a-run", "--force on a folder that holds no results",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 1000), *POLICY_QUICK,
+                     "--out", _not_a_run(ws), "--force"], "refusing to delete"),
+    Case("online-zero-steps", "online --steps 0", lambda ws: ["online", "train", "--env", "halfcheetah", "--out",
+                                                             str(ws / "run"), "--steps", "0"], "--steps"),
+    Case("online-zero-checkpoint", "online --checkpoint-every 0",
+         lambda ws: ["online", "train", "--env", "halfcheetah", "--out", str(ws / "run"), "--checkpoint-every", "0"],
+         "--checkpoint-every"),
+    Case("online-unknown-gap", "--gap gravty", lambda ws: ["online", "train", "--env", "halfcheetah", "--gap", "gravty",
+                                                          "--out", str(ws / "run")], "gravty"),
+    Case("online-shorter-resume", "resume an online run with a lower --steps",
+         lambda ws: ["online", "train", "--env", "halfcheetah", "--out", str(_online_run(ws)), "--steps", "10",
+                     "--start-steps", "50", "--checkpoint-every", "50", "--eval-episodes", "1"], "beyond --steps"),
+    Case("online-other-settings", "resume an online run with other settings",
+         lambda ws: ["online", "train", "--env", "halfcheetah", "--out", str(_online_run(ws)), "--steps", "100",
+                     "--start-steps", "40", "--checkpoint-every", "50", "--eval-episodes", "1"], "start_steps"),
+]
+
+
+def _snapshot(ws: Path) -> dict[str, str]:
+    return {str(p.relative_to(ws)): (hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir")
+            for p in sorted(ws.rglob("*"))}
+
+
+def _limited(kind: str) -> Callable[[], None]:
+    def apply() -> None:
+        if kind == "file_size":
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the cap fails with EFBIG instead
+            resource.setrlimit(resource.RLIMIT_FSIZE, (256 * 1024, 256 * 1024))
+        elif os.geteuid() == 0:
+            # Root writes anywhere. In a new user namespace it keeps its files but loses the power to
+            # override their permission bits, so a folder of mode 0o555 is read-only to it too.
+            libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+            if libc.unshare(CLONE_NEWUSER) != 0:
+                raise OSError(ctypes.get_errno(), "unshare(CLONE_NEWUSER)")
+    return apply
+
+
+def run_case(case: Case, ws: Path) -> tuple[int, str, dict[str, str], dict[str, str]]:
+    """Build the row's inputs in ``ws``, run it; ``(exit code, what xted printed, files before, after)``."""
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        argv = case.build(ws)
+    before = _snapshot(ws)
+    if case.limit is None:
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(argv)
+            except Exception:  # what the console script does with an internal error
+                traceback.print_exc()
+                code = 1
+        text = out.getvalue() + err.getvalue()
+    else:
+        script = "import sys; from xted.cli.main import run; sys.argv[0] = 'xted'; run()"
+        done = subprocess.run([sys.executable, "-c", script, *argv], capture_output=True, text=True,
+                              preexec_fn=_limited(case.limit), cwd=ws,
+                              env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, (
+                                  str(Path(xted.__file__).parent.parent), os.environ.get("PYTHONPATH"))))})
+        code, text = done.returncode, done.stdout + done.stderr
+    return code, text, before, _snapshot(ws)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+def test_bad_input(case: Case, tmp_path: Path) -> None:
+    code, text, before, after = run_case(case, tmp_path)
+    assert code == case.code, text
+    assert case.says.lower() in text.lower(), text
+    assert "Traceback" not in text, text
+    assert after == before, "files changed or left behind"
+
+
+def test_the_table_in_docs_lists_every_row():
+    rows = {line.split("|")[1].strip().strip("`") for line in DOC.read_text().splitlines()
+            if line.startswith("| `")}
+    assert rows == {case.name for case in CASES}
+
+
+def _answer(text: str) -> str:
+    lines = [line.strip(" │╭╰─╮╯") for line in text.strip().splitlines()]
+    lines = [line for line in lines if line and not line.startswith(("Usage:", "Try ", "Error"))]
+    return " ".join(lines)[:220].replace("|", "\\|") if lines else "(nothing)"
+
+
+def markdown_table() -> str:
+    rows = ["| row | misuse | xted's answer | exit | nothing partial, inputs unchanged |", "|---|---|---|---|---|"]
+    for case in CASES:
+        with tempfile.TemporaryDirectory() as folder:
+            code, text, before, after = run_case(case, Path(folder))
+            text = text.replace(str(Path(folder).resolve()), "WS").replace(folder, "WS")
+        rows.append(f"| `{case.name}` | {case.what} | {_answer(text)} | {code} | {'yes' if after == before else 'NO'} |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print(markdown_table())
