@@ -14,6 +14,9 @@ frequency (the DC bin included):
 The same numbers for *mismatched* pairs (edited episode ``i`` against source episode ``i + 1``)
 give the level of "any trajectory of the same kind": an edit that replaced the source with
 generic target-like data would score like the mismatched pairs.
+
+``mean_spectra`` gives the spectra themselves, the paper's frequency analysis (appendix,
+"Frequency-Domain Analysis"): the rFFT magnitude of aligned segments of source and edit, averaged.
 """
 
 from __future__ import annotations
@@ -41,10 +44,15 @@ def _correlation(a: np.ndarray, b: np.ndarray) -> float:
     return float((a * b).sum() / denominator) if denominator > 0 else float("nan")
 
 
+def _standardizer(source: Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Per-dimension mean and scale of the source: both datasets are measured in the source's units."""
+    return source.observations.mean(axis=0), source.observations.std(axis=0) + 1e-8
+
+
 def _pair_scores(source: Dataset, edited: Dataset, pairs: list[tuple[int, int]], forward_index: int | None,
                  cutoff: float) -> dict[str, float]:
     bounds = source.episode_bounds()
-    mean, scale = source.observations.mean(axis=0), source.observations.std(axis=0) + 1e-8
+    mean, scale = _standardizer(source)
     differences, correlations = [], []
     for i, j in pairs:
         s = source.observations[bounds[i, 0] : bounds[i, 1]].astype(np.float64)
@@ -66,13 +74,7 @@ def content_similarity(source: Dataset, edited: Dataset, forward_index: int | No
     """``{"matched": ..., "mismatched": ...}`` scores for an edit of ``source`` (same episodes)."""
     if not 0.0 < cutoff <= 1.0:
         raise InputError(f"cutoff must be in (0, 1], got {cutoff}")
-    if len(source) != len(edited) or not np.array_equal(source.episode_bounds(), edited.episode_bounds()):
-        raise InputError(
-            f"the edited dataset must have the source's episodes: {source.num_episodes} episodes / "
-            f"{len(source)} transitions against {edited.num_episodes} / {len(edited)}"
-        )
-    if source.observation_dim != edited.observation_dim:
-        raise InputError(f"observation dims differ: {source.observation_dim} and {edited.observation_dim}")
+    check_same_episodes(source, edited)
     if forward_index is not None and not 0 <= forward_index < source.observation_dim:
         raise InputError(f"forward_index {forward_index} is outside the {source.observation_dim}-d observations")
     episodes = source.num_episodes
@@ -81,3 +83,38 @@ def content_similarity(source: Dataset, edited: Dataset, forward_index: int | No
         shifted = [(i, (i + 1) % episodes) for i in range(episodes)]
         result["mismatched"] = _pair_scores(source, edited, shifted, forward_index, cutoff)
     return result
+
+
+def check_same_episodes(source: Dataset, edited: Dataset) -> None:
+    """InputError unless ``edited`` has ``source``'s episodes (same bounds) and observation dims."""
+    if len(source) != len(edited) or not np.array_equal(source.episode_bounds(), edited.episode_bounds()):
+        raise InputError(
+            f"the edited dataset must have the source's episodes: {source.num_episodes} episodes / "
+            f"{len(source)} transitions against {edited.num_episodes} / {len(edited)}"
+        )
+    if source.observation_dim != edited.observation_dim:
+        raise InputError(f"observation dims differ: {source.observation_dim} and {edited.observation_dim}")
+
+
+def mean_spectra(source: Dataset, edited: Dataset, segment: int = 100) -> dict[str, np.ndarray | int]:
+    """rFFT magnitude per state dimension of source and edit, averaged over every aligned segment.
+
+    Each episode is cut into consecutive ``segment``-step pieces (a shorter rest is dropped), every
+    dimension standardised by the source's mean and standard deviation. Returns ``frequency``
+    (fraction of the Nyquist frequency, as ``cutoff``), ``source`` and ``edited`` (``[F, D]``, the
+    magnitude divided by ``segment``) and ``segments``, how many were averaged.
+    """
+    check_same_episodes(source, edited)
+    if segment < 2:
+        raise InputError(f"segment must be at least 2 steps, got {segment}")
+    mean, scale = _standardizer(source)
+    pieces: dict[str, list[np.ndarray]] = {"source": [], "edited": []}
+    for start, end in source.episode_bounds():
+        for first in range(start, end - segment + 1, segment):
+            for name, data in (("source", source), ("edited", edited)):
+                pieces[name].append((data.observations[first : first + segment] - mean) / scale)
+    if not pieces["source"]:
+        raise InputError(f"no episode has {segment} steps; the longest has {int(source.episode_lengths().max())}")
+    spectra = {name: np.abs(np.fft.rfft(np.stack(p).astype(np.float64), axis=1)).mean(axis=0) / segment
+               for name, p in pieces.items()}
+    return {"frequency": np.fft.rfftfreq(segment) * 2.0, **spectra, "segments": len(pieces["source"])}
