@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pytest
 
-from xted.data import Dataset
+from xted.data import Dataset, load
 
 
 def build_dataset(
@@ -51,6 +51,16 @@ def build_dataset(
         },
         metadata={"env": "Toy-v0", "seed": seed, "policy": "random", "normalized_score": 12.5},
     )
+
+
+def first_steps(name: str, steps: int, episodes: int = 2) -> Dataset:
+    """The first ``steps`` steps of the first ``episodes`` episodes of a shipped dataset."""
+    data = load(name)
+    rows = np.concatenate([np.arange(start, start + steps) for start, _ in data.episode_bounds()[:episodes]])
+    timeouts = np.zeros(len(rows), bool)
+    timeouts[steps - 1 :: steps] = True
+    return Dataset(observations=data.observations[rows], actions=data.actions[rows], rewards=data.rewards[rows],
+                   terminals=np.zeros(len(rows), bool), timeouts=timeouts, metadata={"env": data.metadata["env"]})
 
 
 @pytest.fixture

@@ -1,7 +1,7 @@
 """The package's layers import only downward: core (errors, atomic, config, lazy, nn, resume) -> data ->
-envs -> diffusion | rl | analysis -> pipelines -> cli. Modules of one layer may import their own
+envs -> diffusion | rl | analysis -> pipelines | viz -> cli. Modules of one layer may import their own
 package, never a sibling package of the same layer (diffusion, rl and analysis stay independent
-of each other)."""
+of each other, and so do pipelines and viz)."""
 
 import ast
 import subprocess
@@ -13,6 +13,8 @@ import xted
 PACKAGE = Path(xted.__file__).parent
 LAYERS = {
     "core": 0, "data": 1, "envs": 2, "diffusion": 3, "rl": 3, "analysis": 3, "pipelines": 4, "cli": 5,
+    # Pictures draw on several layer-3 packages (analysis's spectra, the runs of diffusion and rl).
+    "viz": 4,
 }
 CORE_MODULES = {"__init__", "errors", "atomic", "config", "lazy", "nn", "resume"}
 
@@ -65,7 +67,7 @@ def test_editing_does_not_load_the_training_stack():
 
 def test_the_cli_and_the_configs_load_without_jax():
     """`xted --help` stays fast: the CLI takes its defaults from plain-Python config modules."""
-    code = ("import sys, xted.cli.main, xted.diffusion.config, xted.rl.configs, xted.analysis.config; "
+    code = ("import sys, xted.cli.main, xted.diffusion.config, xted.rl.configs, xted.analysis.config, xted.viz.config; "
             "print(sorted(m for m in ('jax', 'flax', 'optax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
@@ -76,8 +78,9 @@ def test_lazy_exports_resolve_to_their_objects_not_to_a_submodule_of_the_same_na
 
     import xted.analysis
     import xted.diffusion
+    import xted.viz
 
-    for package in (xted.analysis, xted.diffusion):
+    for package in (xted.analysis, xted.diffusion, xted.viz):
         for _ in range(2):  # the second pass runs with every submodule imported (bound on the package)
             for name in package.__all__:
                 assert not isinstance(getattr(package, name), types.ModuleType), f"{package.__name__}.{name}"
