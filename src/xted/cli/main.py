@@ -22,7 +22,8 @@ app = typer.Typer(
 
 # Sub-apps by name, and the modules that register top-level commands on ``app``. A module that
 # fails to import is an error of xted itself, never a command silently missing.
-_SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online"}
+_SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online",
+            "plot": "xted.cli.plot"}
 _COMMAND_MODULES = ["xted.cli.commands", "xted.cli.policy", "xted.cli.render"]
 
 
