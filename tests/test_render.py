@@ -33,6 +33,18 @@ def test_frames_are_drawn_and_change_with_the_state(env):
     assert np.abs(frames[0] - frames[1]).mean() > 1 and np.abs(frames[1] - frames[2]).mean() > 1
 
 
+def test_the_floor_is_drawn_under_a_body_far_from_the_start():
+    """The envs' floor ends 40 m out; a runner passes that in half a minute."""
+    model, _ = simulator(parse_domain("halfcheetah"))
+    data = mujoco.MjData(model)
+    bottoms = []
+    with OffscreenRenderer(model, 64, 48) as renderer:
+        for x in (0.0, 500.0):
+            set_state(model, data, np.r_[x, np.zeros(model.nq - 1)], np.zeros(model.nv))
+            bottoms.append(renderer.render(data)[36:].astype(float))
+    assert bottoms[0].std() > 30 and bottoms[1].std() > 30, "the checker floor should fill the bottom of the frame"
+
+
 def test_root_positions_integrate_the_velocity_by_the_trapezoid_rule():
     np.testing.assert_allclose(root_positions(np.full(5, 2.0), 0.05), [0.0, 0.1, 0.2, 0.3, 0.4], atol=1e-12)
     np.testing.assert_allclose(root_positions(np.array([0.0, 2.0, 2.0]), 0.5), [0.0, 0.5, 1.5], atol=1e-12)
