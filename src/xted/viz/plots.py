@@ -6,10 +6,12 @@ Figures are drawn without pyplot (no global state, no display needed): a ``Figur
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from PIL import Image
 
 from xted.analysis.content import check_same_episodes, mean_spectra
 from xted.atomic import atomic_path
@@ -36,10 +38,15 @@ def check_png_path(path: str | Path) -> Path:
 
 
 def save_png(figure: Figure, path: str | Path) -> Path:
-    """Write ``figure`` atomically to ``path`` (``.png``)."""
+    """Write ``figure`` atomically to ``path`` (``.png``) in a 256-colour palette: plots of a few
+    lines and bars look the same, at a third of the size of matplotlib's RGBA."""
     path = check_png_path(path)
+    drawn = io.BytesIO()
+    figure.savefig(drawn, format="png", dpi=DPI)
+    with Image.open(drawn) as image:
+        palette = image.convert("RGB").quantize(colors=256)
     with atomic_path(path, suffix=".png") as tmp:
-        figure.savefig(tmp, dpi=DPI)
+        palette.save(tmp, format="PNG", optimize=True)
     return path
 
 
