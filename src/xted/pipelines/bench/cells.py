@@ -1,0 +1,56 @@
+"""Computing each kind of cell: an edit, an oracle relabelling, and one group of learner seeds."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from xted.data import Dataset
+from xted.diffusion.editor import edit_dataset
+from xted.diffusion.prior import load_prior
+from xted.envs import parse_domain
+from xted.envs.dynamics import predict_next_observations, replayed_rewards
+from xted.envs.make import forward_velocity_index, observation_velocity_clip
+from xted.pipelines.bench.grid import DataCell, LearnerCell
+from xted.rl.offline_train import train_offline
+
+
+def edited(cell: DataCell, source: Dataset) -> Dataset:
+    """The source edited with the cell's prior, as ``xted edit`` does."""
+    data, _ = edit_dataset(load_prior(cell.prior), source, cell.edit)
+    return data
+
+
+def oracle(env: str, source: Dataset) -> Dataset:
+    """The source's (s, a) with the target simulator's next state and reward: perfect editing.
+
+    Velocities are clipped as the target env's observations are (Walker2d). Terminals and timeouts
+    are carried from the source, as an edit carries them; extras describe the source's simulator
+    and are dropped."""
+    domain = parse_domain(env)
+    next_observations = predict_next_observations(domain, source.observations, source.actions)
+    clip = observation_velocity_clip(domain)
+    velocities = slice(forward_velocity_index(domain), None)
+    next_observations[:, velocities] = np.clip(next_observations[:, velocities], -clip, clip)
+    rewards = replayed_rewards(domain, source.observations, source.actions)
+    return dataclasses.replace(
+        source, next_observations=next_observations.astype(source.observations.dtype),
+        rewards=rewards.astype(source.rewards.dtype), extras={},
+        metadata={**source.metadata, "relabelled": f"next states and rewards of the {env} simulator (oracle)"})
+
+
+def make_data(cell: DataCell, source: Dataset) -> Dataset:
+    return edited(cell, source) if cell.kind == "edit" else oracle(cell.env, source)
+
+
+def train_group(cells: Sequence[LearnerCell], training: Sequence[Dataset], progress: bool) -> list[dict]:
+    """Train the seeds of one group together (one vmapped ``train_offline``); one result per cell."""
+    first = cells[0]
+    run = first.inputs
+    results = train_offline(first.config, training[0], list(training[1:]), parse_domain(first.env), run["steps"],
+                            [cell.seed for cell in cells], eval_every=run["eval_every"],
+                            eval_episodes=run["eval_episodes"], progress=progress)
+    keep = ("seed", "final_score", "best_score", "evals", "updates_per_second")
+    return [{name: result[name] for name in keep} for result in results]

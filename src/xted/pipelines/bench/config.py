@@ -1,0 +1,64 @@
+"""The bench's settings. Plain Python: the CLI takes its defaults from here without loading JAX."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from xted.errors import InputError
+
+# What a learner trains on, besides the target data it is evaluated against.
+SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA = (
+    "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA")
+COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA)
+DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchConfig:
+    """One grid: envs x target levels x gaps x columns x algos x seeds (the "lite table" by default).
+
+    ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``overrides``: the algorithm
+    config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
+    ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
+    one); ``transitions``: use only the first N transitions of every dataset (a quick look at the
+    protocol; None: all)."""
+
+    envs: tuple[str, ...] = ("halfcheetah", "walker2d")
+    targets: tuple[str, ...] = ("medium-replay",)
+    gaps: tuple[str, ...] = ("thigh", "gravity", "friction")
+    columns: tuple[str, ...] = COLUMNS
+    algos: tuple[str, ...] = ("iql",)
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    steps: int = 30_000
+    eval_every: int = 10_000
+    eval_episodes: int = 10
+    kappa: float = 0.5
+    edit: tuple[str, ...] = ()
+    overrides: tuple[str, ...] = ()
+    priors: tuple[str, ...] = ()
+    transitions: int | None = None
+    store: str = "benchmarks/results/bench"
+    cache: str = "runs/bench-cache"
+
+    def __post_init__(self) -> None:
+        for name in ("envs", "targets", "gaps", "columns", "algos", "seeds"):
+            values = getattr(self, name)
+            if not values or len(set(values)) != len(values):
+                raise InputError(f"bench: {name} must be a non-empty list without repeats, got {list(values)}")
+        unknown = [column for column in self.columns if column not in COLUMNS]
+        if unknown:
+            raise InputError(f"bench: unknown column {unknown[0]!r}; known: {', '.join(COLUMNS)}")
+        if any(seed < 0 for seed in self.seeds):
+            raise InputError(f"bench: seeds must be non-negative, got {list(self.seeds)}")
+        for name in ("steps", "eval_every", "eval_episodes"):
+            if getattr(self, name) <= 0:
+                raise InputError(f"bench: {name} must be positive, got {getattr(self, name)}")
+        if self.transitions is not None and self.transitions < 2:
+            raise InputError(f"bench: transitions must be >= 2, got {self.transitions}")
+        for pair in self.priors:
+            if "=" not in pair:
+                raise InputError(f"--prior {pair!r}: expected ENV=PATH or ENV-TARGET=PATH")
+
+    def prior_paths(self) -> dict[str, str]:
+        """``--prior`` pairs as ``{ENV or ENV-TARGET: PATH}``."""
+        return dict(pair.split("=", 1) for pair in self.priors)

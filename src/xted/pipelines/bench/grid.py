@@ -1,0 +1,250 @@
+"""The bench's grid: its cells, what each is computed from, and each cell's key.
+
+A cell's key is the SHA-256 of everything that determines its result: the fingerprints of the
+data it reads, the prior's files, the edit and algorithm configs, steps, evaluation and seed. Its
+result is stored under that key, so a rerun skips a cell whose key it finds and computes any
+whose inputs changed; planning is cheap (shipped data is small), so the report plans too and
+reads exactly the current cells.
+
+Kinds of cell: an *edit* (a source edited with a prior) and an *oracle* (a source relabelled by
+the target simulator) make data; a *learner* trains one algorithm with one seed on target and/or
+source data. A learner that reads an edit or an oracle names that cell's key, not the data's
+fingerprint, so the key is known before the data is made.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+from xted.config import apply_overrides
+from xted.data import Dataset, load, shipped
+from xted.diffusion.config import EditConfig
+from xted.diffusion.prior import read_prior_json
+from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env
+from xted.errors import InputError
+from xted.pipelines.bench.config import (
+    DARA_BACKBONE,
+    SRC,
+    TGT,
+    TGT_EDITED,
+    TGT_ORACLE,
+    TGT_SRC,
+    TGT_SRC_DARA,
+    BenchConfig,
+)
+from xted.resume import as_json
+from xted.rl.configs import DARAConfig
+from xted.rl.offline_train import AlgoConfig, algorithm_name, default_config
+
+SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LEVEL-cpu
+
+
+def cell_key(inputs: dict) -> str:
+    return hashlib.sha256(json.dumps(as_json(inputs), sort_keys=True).encode()).hexdigest()
+
+
+def folder_fingerprint(folder: Path) -> str:
+    """SHA-256 of every file's relative path and bytes: exact identity of a prior folder."""
+    digest = hashlib.sha256()
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        digest.update(str(path.relative_to(folder)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def first_transitions(data: Dataset, n: int | None) -> Dataset:
+    """The first ``n`` transitions (the episode cut there ends in a timeout); all for None."""
+    if n is None or n >= len(data):
+        return data
+    terminals, timeouts = data.terminals[:n].copy(), data.timeouts[:n].copy()
+    timeouts[-1] = not terminals[-1]
+    return Dataset(observations=data.observations[:n], actions=data.actions[:n], rewards=data.rewards[:n],
+                   terminals=terminals, timeouts=timeouts,
+                   next_observations=None if data.next_observations is None else data.next_observations[:n],
+                   extras={k: v[:n] for k, v in data.extras.items()}, metadata=data.metadata)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DataCell:
+    """An edit (``target`` is the prior's target level) or an oracle relabelling of one source."""
+
+    kind: str  # "edit" or "oracle"
+    env: str
+    gap: str
+    source: str  # dataset name
+    target: str | None = None
+    prior: str | None = None  # the prior's folder (edits)
+    edit: EditConfig | None = None
+    inputs: dict = dataclasses.field(default_factory=dict)
+    key: str = ""
+
+    @property
+    def name(self) -> str:
+        return "-".join(part for part in (self.kind, self.target, self.gap, self.key[:12]) if part)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LearnerCell:
+    """One seed of one algorithm on its training data (dataset names or data cells, target first).
+
+    ``target`` is None where the result does not depend on the target level (Src), ``gap`` where it
+    does not depend on the source (Tgt): such a cell is shared by every row it appears in."""
+
+    env: str
+    target: str | None
+    gap: str | None
+    column: str
+    algo: str
+    seed: int
+    config: AlgoConfig
+    training: tuple[str | DataCell, ...]
+    inputs: dict
+    key: str
+
+    @property
+    def group(self) -> tuple:
+        """Cells that differ only by seed train together."""
+        return (self.env, self.target, self.gap, self.column, self.algo)
+
+    @property
+    def data_cell(self) -> DataCell | None:
+        return next((ref for ref in self.training if isinstance(ref, DataCell)), None)
+
+    @property
+    def name(self) -> str:
+        slug = self.column.lower().replace(" ", "-")
+        parts = (self.target, self.gap, slug, self.algo, f"seed{self.seed}", self.key[:12])
+        return "-".join(part for part in parts if part is not None)
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One line of the table: env x target x gap x column x algo, with its cell per seed."""
+
+    env: str
+    target: str
+    gap: str
+    column: str
+    algo: str
+    cells: tuple[LearnerCell, ...]  # empty where the column cannot be computed (no prior)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Grid:
+    config: BenchConfig
+    datasets: dict[str, Dataset]
+    rows: list[Row]
+    learners: dict[str, LearnerCell]  # by key: a cell shared by several rows appears once
+    blocked: list[str]  # why some rows have no cells
+
+
+def check_names(config: BenchConfig) -> None:
+    """Every env, target level, gap and algorithm known, with its shipped data; before any loading."""
+    for env in config.envs:
+        if env not in ENV_IDS:
+            raise InputError(f"bench: unknown env {env!r}; known: {', '.join(ENV_IDS)}")
+        for gap in config.gaps:
+            if gap not in PAPER_GAPS[env]:
+                raise InputError(f"bench: unknown gap {gap!r}; known: {', '.join(PAPER_GAPS[env])}")
+        for name in [f"{env}-{target}" for target in config.targets] + [f"{env}-{gap}" for gap in config.gaps]:
+            if shipped.find(name) is None:
+                raise InputError(f"bench: no shipped dataset {name!r}; shipped: {', '.join(shipped.names())}")
+    for algo in config.algos:
+        default_config(algo)
+    for key in config.prior_paths():
+        if key.split("-", 1)[0] not in config.envs:
+            raise InputError(f"--prior {key}=...: {key!r} is not ENV or ENV-TARGET of an env in the grid")
+
+
+def edit_config(config: BenchConfig) -> EditConfig:
+    return dataclasses.replace(apply_overrides(EditConfig(), list(config.edit)), kappa=config.kappa)
+
+
+def algo_configs(config: BenchConfig, algo: str) -> tuple[AlgoConfig, DARAConfig | None]:
+    """The learner's config and, for DARA's backbone, DARA's (``--set dara.FIELD=VALUE`` are DARA's own)."""
+    own = [pair for pair in config.overrides if not pair.startswith("dara.")]
+    dara = [pair[len("dara."):] for pair in config.overrides if pair.startswith("dara.")]
+    learner = apply_overrides(default_config(algo), own)
+    return learner, apply_overrides(DARAConfig(iql=learner), dara) if algo == DARA_BACKBONE else None
+
+
+def resolve_prior(config: BenchConfig, env: str, target: str) -> Path | None:
+    given = config.prior_paths()
+    path = given.get(f"{env}-{target}", given.get(env))
+    if path is not None:
+        if not (Path(path) / "prior.json").is_file():
+            raise InputError(f"--prior {env}={path}: no prior.json there (not a prior folder)")
+        return Path(path)
+    shipped_prior = shipped.prior_dir(f"{env}-{target}{SHIPPED_PRIOR_SUFFIX}")
+    return shipped_prior if (shipped_prior / "prior.json").is_file() else None
+
+
+def plan(config: BenchConfig) -> Grid:
+    """Every cell of the grid with its key; loads the datasets (and hashes the priors), trains nothing."""
+    check_names(config)
+    edit = edit_config(config)
+    datasets: dict[str, Dataset] = {}
+
+    def dataset(name: str) -> Dataset:
+        if name not in datasets:
+            datasets[name] = first_transitions(load(name), config.transitions)
+        return datasets[name]
+
+    def fingerprint(ref: str | DataCell) -> Any:
+        return {"kind": ref.kind, "key": ref.key} if isinstance(ref, DataCell) else dataset(ref).fingerprint()
+
+    def data_cell(kind: str, env: str, gap: str, target: str | None = None, prior: Path | None = None) -> DataCell:
+        source = f"{env}-{gap}"
+        if kind == "edit":
+            meta = read_prior_json(prior / "prior.json")
+            check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
+            inputs = {"kind": kind, "source": fingerprint(source), "prior": folder_fingerprint(prior),
+                      "edit": dataclasses.asdict(edit)}
+        else:
+            inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
+        return DataCell(kind, env, gap, source, target, None if prior is None else str(prior),
+                        edit if kind == "edit" else None, inputs, cell_key(inputs))
+
+    rows: list[Row] = []
+    learners: dict[str, LearnerCell] = {}
+    blocked: list[str] = []
+    for env in config.envs:
+        for target_level in config.targets:
+            target = f"{env}-{target_level}"
+            prior = resolve_prior(config, env, target_level) if TGT_EDITED in config.columns else None
+            if TGT_EDITED in config.columns and prior is None:
+                blocked.append(f"{target}: no prior (none shipped as {target}{SHIPPED_PRIOR_SUFFIX}; pass --prior "
+                               f"{env}=PATH), so its {TGT_EDITED} cells are left out")
+            for gap in config.gaps:
+                source = f"{env}-{gap}"
+                trainings: dict[str, tuple[str | DataCell, ...] | None] = {
+                    SRC: (source,), TGT: (target,), TGT_SRC: (target, source), TGT_SRC_DARA: (target, source),
+                    TGT_EDITED: None if prior is None else (target, data_cell("edit", env, gap, target_level, prior)),
+                    TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
+                }
+                for algo in config.algos:
+                    learner, dara = algo_configs(config, algo)
+                    for column in config.columns:
+                        if column == TGT_SRC_DARA and dara is None:
+                            continue
+                        training = trainings[column]
+                        cells = []
+                        for seed in config.seeds if training is not None else ():
+                            algo_config = dara if column == TGT_SRC_DARA else learner
+                            inputs = {"kind": "learner", "algo": algorithm_name(algo_config),
+                                      "config": dataclasses.asdict(algo_config), "domain": env,
+                                      "data": [fingerprint(ref) for ref in training], "steps": config.steps,
+                                      "eval_every": config.eval_every, "eval_episodes": config.eval_episodes,
+                                      "seed": seed}
+                            key = cell_key(inputs)
+                            cell = learners.setdefault(key, LearnerCell(
+                                env, None if column == SRC else target_level, None if column == TGT else gap,
+                                column, algo, seed, algo_config, training, inputs, key))
+                            cells.append(cell)
+                        rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))
+    return Grid(config, datasets, rows, learners, blocked)
+

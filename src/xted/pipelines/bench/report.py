@@ -1,0 +1,71 @@
+"""The table from stored results, nothing recomputed: one row per env x target x gap x column x
+algo (mean and std of the final normalised score over the seeds found), and its markdown with
+each mixed column's gain against Tgt as the paper prints it."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from xted.pipelines.bench import store
+from xted.pipelines.bench.config import TGT
+from xted.pipelines.bench.grid import Grid
+
+MISSING = "—"
+
+
+def table_rows(grid: Grid) -> list[dict]:
+    """Each row of the grid with the seeds' final scores found in the store."""
+    rows = []
+    for row in grid.rows:
+        results = [store.read_result(grid.config.store, cell) for cell in row.cells]
+        scores = [result["final_score"] for result in results if result is not None]
+        rows.append({"env": row.env, "target": row.target, "gap": row.gap, "column": row.column, "algo": row.algo,
+                     **score_summary(scores), "scores": scores})
+    return rows
+
+
+def score_summary(scores: Sequence[float]) -> dict:
+    """Mean and std (over seeds, ddof 0) of the final scores; None for none."""
+    if not scores:
+        return {"mean": None, "std": None, "n_seeds": 0}
+    return {"mean": float(np.mean(scores)), "std": float(np.std(scores)), "n_seeds": len(scores)}
+
+
+def gain(value: float | None, baseline: float | None) -> str:
+    """The relative change against Tgt, as the paper prints it (+17.5%)."""
+    if value is None or baseline is None or baseline == 0:
+        return ""
+    return f" ({100 * (value - baseline) / abs(baseline):+.1f}%)"
+
+
+def markdown(rows: list[dict]) -> str:
+    """Columns side by side per env, target, gap and algo; a Total line per algo (sums of means)."""
+    columns = list(dict.fromkeys(row["column"] for row in rows))
+    lines: dict[tuple, dict[str, dict]] = {}
+    for row in rows:
+        lines.setdefault((row["env"], row["target"], row["gap"], row["algo"]), {})[row["column"]] = row
+    header = ["env", "target", "gap", "algo", *columns]
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for (env, target, gap, algo), found in lines.items():
+        baseline = found.get(TGT, {}).get("mean")
+        cells = []
+        for column in columns:
+            row = found.get(column)
+            if row is None or row["mean"] is None:
+                cells.append(MISSING)
+                continue
+            shown = f"{row['mean']:.1f} ± {row['std']:.1f}"
+            cells.append(shown + (gain(row["mean"], baseline) if column.startswith(TGT + "+") else ""))
+        out.append("| " + " | ".join([env, target, gap, algo, *cells]) + " |")
+    for algo in dict.fromkeys(row["algo"] for row in rows):
+        totals = {}
+        for column in columns:
+            means = [row["mean"] for row in rows if row["algo"] == algo and row["column"] == column]
+            totals[column] = None if None in means else float(sum(means))
+        cells = [MISSING if totals[c] is None else f"{totals[c]:.1f}" + (gain(totals[c], totals.get(TGT))
+                                                                          if c.startswith(TGT + "+") else "")
+                 for c in columns]
+        out.append("| Total | | | " + algo + " | " + " | ".join(cells) + " |")
+    return "\n".join(out)

@@ -1,0 +1,43 @@
+"""Where cells' results live: small JSONs in the store (committed), made datasets in the cache (not).
+
+A result's file name says what the cell is and ends in its key's first 12 hex digits; the file
+holds the whole key, which a reader checks, so a file of another run is never taken for this one."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from xted.atomic import atomic_path
+from xted.errors import InputError
+from xted.pipelines.bench.grid import DataCell, LearnerCell
+
+Cell = LearnerCell | DataCell
+
+
+def result_path(store: str | Path, cell: Cell) -> Path:
+    return Path(store) / cell.env / f"{cell.name}.json"
+
+
+def data_path(cache: str | Path, cell: DataCell) -> Path:
+    return Path(cache) / cell.env / f"{cell.name}.npz"
+
+
+def read_result(store: str | Path, cell: Cell) -> dict | None:
+    """The stored result of ``cell``, or None where there is none for its key."""
+    path = result_path(store, cell)
+    if not path.is_file():
+        return None
+    try:
+        result = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise InputError(f"{path}: unreadable cell result ({err}); remove it to recompute the cell") from None
+    return result if isinstance(result, dict) and result.get("key") == cell.key else None
+
+
+def write_result(store: str | Path, cell: Cell, result: dict) -> Path:
+    path = result_path(store, cell)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, ".json") as tmp:
+        tmp.write_text(json.dumps({**result, "key": cell.key, "inputs": cell.inputs}, indent=1))
+    return path
