@@ -72,13 +72,16 @@ def test_dynamics_from_edit_quality_rows(tmp_path):
     assert png_size(tmp_path / "d.png") == (760, 420)
 
 
-def test_table_from_main_table_output(tmp_path):
-    rows = [{"algo": algo, "data": data, "scores": [m - 1, m, m + 1], "mean": m, "std": 0.8}
-            for algo in ("iql", "td3bc") for data, m in (("target", 8.0), ("source-thigh", 5.0), ("edited-thigh", 6.0))]
-    printed = tmp_path / "main_table.txt"
-    printed.write_text("".join(json.dumps(row) + "\n" for row in rows) + "\n| algo | data |\n|---|---|\n")
+def test_table_from_bench_rows(tmp_path):
+    rows = [{"env": "halfcheetah", "target": "medium-replay", "gap": gap, "column": column, "algo": algo,
+             "mean": m, "std": 0.8, "n_seeds": 3, "scores": [m - 1, m, m + 1]}
+            for algo in ("iql", "td3bc") for gap in ("thigh", "gravity")
+            for column, m in (("Tgt", 8.0), ("Tgt+Src", 5.0), ("Tgt+Edited", 6.0))]
+    rows.append({**rows[0], "column": "Tgt+Oracle", "mean": None, "std": None, "n_seeds": 0, "scores": []})
+    printed = tmp_path / "bench.json"
+    printed.write_text(json.dumps({"rows": rows}))
     assert main(["plot", "table", str(printed), "--out", str(tmp_path / "table.png")]) == 0
-    assert png_size(tmp_path / "table.png") == (460, 420)
+    assert png_size(tmp_path / "table.png") == (760, 420)
 
 
 def write_runs(folder):
@@ -108,7 +111,7 @@ def test_curves_of_each_kind_of_run(tmp_path):
 @pytest.mark.parametrize("command, message", [
     (["dynamics", "{tmp}/missing.jsonl", "--out", "{tmp}/out.png"], "no such file"),
     (["dynamics", "{tmp}/rows.jsonl", "--out", "{tmp}/out.jpg"], "written as .png"),
-    (["table", "{tmp}/rows.jsonl", "--out", "{tmp}/out.png"], "needs algo, data, mean, std"),
+    (["table", "{tmp}/rows.jsonl", "--out", "{tmp}/out.png"], "not the output of xted bench"),
     (["dynamics", "{tmp}/broken.jsonl", "--out", "{tmp}/out.png"], "broken.jsonl:2: not a JSON object"),
     (["curves", "{tmp}", "--out", "{tmp}/out.png"], "found none of them"),
     (["curves", "{tmp}/runs/prior", "{tmp}/runs/online", "--out", "{tmp}/out.png"], "runs of one kind"),

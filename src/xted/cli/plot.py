@@ -103,16 +103,14 @@ def curves(
 
 @app.command("table")
 def table(
-    results: Path = typer.Argument(..., help="The standard output of benchmarks/main_table.py (JSON rows)."),
+    results: Path = typer.Argument(..., help="What xted bench --report --json printed ({\"rows\": [...]})."),
     out: Path = typer.Option(..., "--out", help=OUT_HELP),
 ) -> None:
-    """The paper's Table 1 as grouped bars: per algorithm and gap, the normalised score of Target,
-    Target + source and Target + edited source (mean and std over seeds, each seed a dot).
-
-    Input: what ``python benchmarks/main_table.py ... > FILE`` prints: one JSON object per
-    algorithm and data (keys algo, data, mean, std, scores); the markdown table after them is skipped."""
+    """The paper's Table 1 as grouped bars: per env, target and algorithm, a group per gap and a
+    bar per column (Src, Tgt, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA): mean and std over
+    seeds, each seed a dot. ``xted bench --report --png FILE`` draws the same figure."""
     from xted.viz.plots import check_png_path, save_png, table_figure
-    from xted.viz.results import read_main_table
+    from xted.viz.results import read_bench_rows
 
     check_png_path(out)
-    typer.echo(save_png(table_figure(read_main_table(results)), out))
+    typer.echo(save_png(table_figure(read_bench_rows(results)), out))

@@ -191,40 +191,39 @@ def curves_figure(runs: list[RunCurves]) -> Figure:
 
 
 _ALGO_NAMES = {"iql": "IQL", "td3bc": "TD3+BC", "bc": "BC", "dara": "DARA"}
-_MIXES = {"target": "Target", "source": "Target + source", "edited": "Target + edited source"}
+_COLUMN_COLORS = {"Src": "tab:gray", "Tgt": "tab:purple", "Tgt+Src": "tab:olive", "Tgt+Edited": "tab:blue",
+                  "Tgt+Oracle": "tab:green", "Tgt+Src DARA": "tab:orange"}
 
 
 def table_figure(rows: list[dict]) -> Figure:
-    """Normalised scores per algorithm and gap: Target, Target + source and Target + edited, mean
-    and std over seeds, each seed a dot (rows of ``benchmarks/main_table.py``)."""
-    algos = list(dict.fromkeys(row["algo"] for row in rows))
-    scores: dict[tuple[str, str, str], dict] = {}
-    gaps: list[str] = []
-    for row in rows:
-        mix, _, gap = row["data"].partition("-")
-        if mix not in _MIXES or (mix == "target") != (gap == ""):
-            raise InputError(f"unknown data {row['data']!r}: main_table.py names them target, source-GAP, edited-GAP")
-        if gap and gap not in gaps:
-            gaps.append(gap)
-        scores[row["algo"], mix, gap] = row
-    if not gaps:
-        raise InputError("the rows hold no source-GAP or edited-GAP data to compare with the target")
-    figure = Figure(figsize=(1.6 + 1.5 * len(gaps) * len(algos), 4.2), layout="constrained")
-    axes = figure.subplots(1, len(algos), sharey=True, squeeze=False)[0]
-    x, width = np.arange(len(gaps)), 0.27
-    for axis, algo in zip(axes, algos):
-        for offset, mix in zip((-width, 0.0, width), _MIXES):
-            found = [scores.get((algo, mix, "" if mix == "target" else gap)) for gap in gaps]
+    """The paper's Table 1 as grouped bars: a panel per env, target and algorithm, a group per gap,
+    a bar per column (mean and std over seeds, each seed a dot where the rows list ``scores``).
+    ``rows``: those of ``xted bench --report --json``; a row without a mean is left out."""
+    rows = [row for row in rows if row.get("mean") is not None]
+    if not rows:
+        raise InputError("no row holds a score (every cell is missing)")
+    panels = list(dict.fromkeys((row["env"], row["target"], row["algo"]) for row in rows))
+    gaps = list(dict.fromkeys(row["gap"] for row in rows))
+    columns = list(dict.fromkeys(row["column"] for row in rows))
+    scores = {(row["env"], row["target"], row["algo"], row["gap"], row["column"]): row for row in rows}
+    figure = Figure(figsize=(1.6 + 0.5 * len(gaps) * len(columns) * len(panels), 4.2), layout="constrained")
+    axes = figure.subplots(1, len(panels), sharey=True, squeeze=False)[0]
+    x, width = np.arange(len(gaps)), 0.8 / len(columns)
+    for axis, panel in zip(axes, panels):
+        for number, column in enumerate(columns):
+            offset = (number - (len(columns) - 1) / 2) * width
+            found = [scores.get((*panel, gap, column)) for gap in gaps]
             means = [np.nan if row is None else row["mean"] for row in found]
             stds = [np.nan if row is None else row["std"] for row in found]
-            axis.bar(x + offset, means, width, yerr=stds, capsize=3, label=_MIXES[mix],
-                     color=COLORS[mix], alpha=0.85)
+            axis.bar(x + offset, means, width, yerr=stds, capsize=2, label=column,
+                     color=_COLUMN_COLORS.get(column), alpha=0.85)
             for position, row in zip(x + offset, found):
                 seeds = [] if row is None else row.get("scores", [])
-                axis.plot([position] * len(seeds), seeds, "k.", markersize=4)
+                axis.plot([position] * len(seeds), seeds, "k.", markersize=3)
         axis.set_xticks(x, gaps)
         axis.set_xlabel("source domain (gap)")
-        axis.set_title(_ALGO_NAMES.get(algo, algo), fontsize=10)
+        env, target, algo = panel
+        axis.set_title(f"{env} {target}, {_ALGO_NAMES.get(algo, algo)}", fontsize=10)
         axis.grid(axis="y", alpha=0.3)
         axis.axhline(0, color="black", linewidth=0.8)
     with_seeds = any(row.get("scores") for row in rows)

@@ -1,8 +1,7 @@
 """The result files ``xted plot`` reads, checked: rows of the benchmarks and training runs.
 
 - ``benchmarks/edit_quality.py --out FILE``: one JSON object per line, per gap and kappa;
-- ``benchmarks/main_table.py``'s standard output: one JSON object per line, per algorithm and
-  mixed-in data, then a markdown table (lines that do not start with ``{`` are skipped);
+- ``xted bench --report --json``: ``{"rows": [...]}``, one row per env, target, gap, column and algo;
 - a training run, by the files in its folder: ``log.csv`` (a prior: ``xted train``),
   ``evals.csv`` (an online run: ``xted online train``) or ``seed_*.json`` (offline policies:
   ``xted policy --out``); a copy of a ``log.csv`` or ``evals.csv`` is recognised by its columns.
@@ -21,7 +20,7 @@ import numpy as np
 from xted.errors import InputError
 
 EDIT_QUALITY_FIELDS = ("gap", "kappa", "sim_source", "sim_edited", "floor")
-MAIN_TABLE_FIELDS = ("algo", "data", "mean", "std")
+BENCH_FIELDS = ("env", "target", "gap", "column", "algo", "mean", "std", "n_seeds")
 RUN_KINDS = ("prior", "online", "offline")
 
 
@@ -51,8 +50,23 @@ def read_edit_quality(path: str | Path) -> list[dict]:
     return read_json_rows(path, EDIT_QUALITY_FIELDS, "benchmarks/edit_quality.py --out")
 
 
-def read_main_table(path: str | Path) -> list[dict]:
-    return read_json_rows(path, MAIN_TABLE_FIELDS, "benchmarks/main_table.py")
+def read_bench_rows(path: str | Path) -> list[dict]:
+    """The rows of a file ``xted bench --report --json`` wrote."""
+    path = Path(path)
+    what = "xted bench --report --json"
+    if not path.is_file():
+        raise InputError(f"{path}: no such file (expected {what})")
+    try:
+        rows = json.loads(path.read_text())["rows"]
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as err:
+        raise InputError(f"{path}: not the output of {what} ({type(err).__name__}: {err})") from None
+    if not isinstance(rows, list) or not rows:
+        raise InputError(f"{path}: no rows of {what}")
+    for number, row in enumerate(rows):
+        missing = [field for field in BENCH_FIELDS if not isinstance(row, dict) or field not in row]
+        if missing:
+            raise InputError(f"{path}: row {number} of {what} needs {', '.join(missing)}")
+    return rows
 
 
 @dataclasses.dataclass(frozen=True)

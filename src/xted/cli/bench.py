@@ -1,0 +1,89 @@
+"""``xted bench``: the paper's Table 1 protocol as a resumable grid of cells, and its report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from xted.cli.main import app
+from xted.cli.policy import parse_seeds
+from xted.errors import InputError
+from xted.pipelines.bench.config import COLUMNS, BenchConfig
+
+DEFAULTS = BenchConfig()
+
+
+def _names(text: str, option: str) -> tuple[str, ...]:
+    names = tuple(part.strip() for part in text.split(",") if part.strip())
+    if not names:
+        raise InputError(f"{option} {text!r}: expected comma-separated names")
+    return names
+
+
+def _joined(values: tuple) -> str:
+    return ",".join(str(value) for value in values)
+
+
+@app.command()
+def bench(
+    envs: str = typer.Option(_joined(DEFAULTS.envs), "--envs", help="Envs, comma-separated."),
+    targets: str = typer.Option(_joined(DEFAULTS.targets), "--targets",
+                                help="Target levels (shipped ENV-LEVEL data), comma-separated."),
+    gaps: str = typer.Option(_joined(DEFAULTS.gaps), "--gaps", help="Source domains, comma-separated."),
+    columns: str = typer.Option(_joined(DEFAULTS.columns), "--columns",
+                                help=f"Training data per learner, comma-separated: {', '.join(COLUMNS)}."),
+    algos: str = typer.Option(_joined(DEFAULTS.algos), "--algos",
+                              help="iql, td3bc, bc (comma-separated); the DARA column is IQL's."),
+    seeds: str = typer.Option(_joined(DEFAULTS.seeds), "--seeds", help="Seeds, trained together per group."),
+    steps: int = typer.Option(DEFAULTS.steps, "--steps", help="Gradient steps per learner."),
+    eval_every: int = typer.Option(DEFAULTS.eval_every, "--eval-every", help="Steps between evaluations."),
+    eval_episodes: int = typer.Option(DEFAULTS.eval_episodes, "--eval-episodes", help="Episodes per evaluation."),
+    kappa: float = typer.Option(DEFAULTS.kappa, "--kappa", help="Edit noise level kappa."),
+    edit: List[str] = typer.Option([], "--edit", help="EditConfig override FIELD=VALUE (repeatable)."),
+    overrides: List[str] = typer.Option(
+        [], "--set", help="Algorithm config override FIELD=VALUE, DARA's own as dara.FIELD=VALUE (repeatable)."),
+    priors: List[str] = typer.Option(
+        [], "--prior", help="Prior folder per env: ENV=PATH or ENV-TARGET=PATH (default: the shipped one)."),
+    transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions",
+                                              help="Use only the first N transitions of every dataset."),
+    store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
+    cache: Path = typer.Option(Path(DEFAULTS.cache), "--cache", help="Folder of made datasets (edits, oracles)."),
+    report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
+    as_json: bool = typer.Option(False, "--json", help="With --report: print {\"rows\": [...]}."),
+    png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
+) -> None:
+    """Run the Table 1 grid (env x target x gap x column x algo x seed), skipping every cell whose
+    result is stored under its current key; or, with --report, show the stored results of this grid."""
+    config = BenchConfig(
+        envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
+        columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
+        steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
+        overrides=tuple(overrides), priors=tuple(priors), transitions=transitions, store=str(store),
+        cache=str(cache))
+    if (as_json or png is not None) and not report:
+        raise InputError("--json and --png go with --report")
+    if not report:
+        from xted.pipelines.bench.run import run_bench
+
+        computed = run_bench(config, echo=typer.echo)
+        typer.echo(f"bench: {len(computed)} cells computed; results in {store}")
+        return
+    from xted.pipelines.bench.grid import plan
+    from xted.pipelines.bench.report import markdown, table_rows
+
+    if png is not None:
+        from xted.viz.plots import check_png_path
+
+        check_png_path(png)
+    grid = plan(config)
+    for message in grid.blocked:
+        typer.echo(f"bench: {message}", err=True)
+    rows = table_rows(grid)
+    typer.echo(json.dumps({"rows": rows}) if as_json else markdown(rows))
+    if png is not None:
+        from xted.viz.plots import save_png, table_figure
+
+        save_png(table_figure(rows), png)

@@ -1,0 +1,177 @@
+"""``xted bench``: cells keyed by their inputs (skipped when unchanged, recomputed exactly when
+changed), seeds trained together, the oracle relabelling, the report and bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from xted.cli.main import main
+from xted.data import load
+from xted.pipelines.bench import cells, grid, store
+from xted.pipelines.bench.config import COLUMNS, BenchConfig
+from xted.pipelines.bench.grid import first_transitions, plan
+from xted.pipelines.bench.run import run_bench
+
+TINY = dict(envs=("halfcheetah",), gaps=("thigh", "gravity"), seeds=(0, 1), steps=10, eval_every=10,
+            eval_episodes=1, transitions=200)
+
+
+def tiny_config(tmp_path, **changes) -> BenchConfig:
+    return BenchConfig(**{**TINY, "store": str(tmp_path / "store"), "cache": str(tmp_path / "cache"), **changes})
+
+
+class FakeTraining:
+    """Stands in for ``train_offline``: records each call's seeds, scores by the data's size."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, config, target, sources, domain, steps, seeds, **settings):
+        self.calls.append(list(seeds))
+        size = len(target) + sum(len(s) for s in sources)
+        return [{"seed": seed, "final_score": size / 100 + seed, "best_score": size / 100 + seed,
+                 "evals": [{"step": steps, "normalized_score": size / 100 + seed}], "updates_per_second": 1.0}
+                for seed in seeds]
+
+
+def refuse_training(*args, **kwargs):
+    raise AssertionError("a finished cell was trained again")
+
+
+def shifted_edit(cell, source):
+    """A stand-in edit that depends on the edit settings (kappa) like a real one does."""
+    return dataclasses.replace(source, rewards=source.rewards + np.float32(cell.edit.kappa))
+
+
+@pytest.fixture
+def fake(monkeypatch):
+    training = FakeTraining()
+    monkeypatch.setattr(cells, "train_offline", training)
+    monkeypatch.setattr(cells, "edited", shifted_edit)
+    return training
+
+
+def run_quietly(config):
+    return run_bench(config, progress=False, echo=lambda message: None)
+
+
+def test_unchanged_cells_are_skipped_and_changed_inputs_recompute_exactly_their_cells(tmp_path, fake, monkeypatch):
+    config = tiny_config(tmp_path)
+    first = run_quietly(config)
+    # 2 gaps x (Src, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA) + Tgt once, x 2 seeds; 2 edits, 2 oracles
+    assert len(first) == (2 * 5 + 1) * 2 + 4
+    assert len(fake.calls) == 11 and all(seeds == [0, 1] for seeds in fake.calls)  # seeds trained together
+
+    monkeypatch.setattr(cells, "train_offline", refuse_training)
+    assert run_quietly(config) == []
+
+    monkeypatch.setattr(cells, "train_offline", fake)
+    recomputed = run_quietly(dataclasses.replace(config, kappa=0.3))
+    edits = [name for name in recomputed if name.startswith("edit-")]
+    learners = [name for name in recomputed if name not in edits]
+    assert len(edits) == 2 and len(learners) == 4 and all("-tgt+edited-" in name for name in learners)
+
+    real_load = grid.load
+
+    def other_gravity_data(name):
+        data = real_load(name)
+        return dataclasses.replace(data, rewards=data.rewards * 2) if name == "halfcheetah-gravity" else data
+
+    monkeypatch.setattr(grid, "load", other_gravity_data)
+    recomputed = run_quietly(dataclasses.replace(config, kappa=0.3))
+    assert len(recomputed) == 5 * 2 + 2 and all("gravity" in name for name in recomputed)
+
+    recomputed = run_quietly(dataclasses.replace(config, kappa=0.3, seeds=(0, 1, 2)))
+    assert len(recomputed) == (2 * 5 + 1) and all("seed2" in name for name in recomputed)
+    assert fake.calls[-1] == [2]
+
+
+def test_learner_results_record_the_edited_data(tmp_path, fake):
+    config = tiny_config(tmp_path, columns=("Tgt+Edited",), seeds=(0,))
+    run_quietly(config)
+    cell = next(iter(plan(config).learners.values()))
+    result = store.read_result(config.store, cell)
+    edit = store.read_result(config.store, cell.data_cell)
+    assert result["training_data"][1] == edit["data_fingerprint"]
+    assert result["edit_key"] == cell.data_cell.key and result["column"] == "Tgt+Edited"
+    assert store.data_path(config.cache, cell.data_cell).is_file()
+
+
+def test_oracle_leaves_target_data_unchanged():
+    """The target simulator relabelling target data gives back its rewards within 1e-5 and its next
+    states within 1e-5 but for a few transitions where a contact amplifies the float32 rounding of
+    the stored state (to 1e-4 at most)."""
+    target = first_transitions(load("halfcheetah-medium-replay"), 300)
+    relabelled = cells.oracle("halfcheetah", target)
+    state_error = np.abs(relabelled.next_observations - target.next_observations).max(axis=1)
+    reward_error = np.abs(relabelled.rewards - target.rewards)
+    assert np.mean(state_error < 1e-5) >= 0.98 and state_error.max() < 1e-3
+    assert np.abs(relabelled.next_observations - target.next_observations).mean() < 1e-6
+    assert reward_error.max() < 1e-5
+    np.testing.assert_array_equal(relabelled.observations, target.observations)
+    np.testing.assert_array_equal(relabelled.actions, target.actions)
+
+
+def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
+    """The shipped prior edits a 200-transition source (kappa 0.05: 10 reverse steps); IQL trains 10 steps."""
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited", "--seeds", "0,1",
+               "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
+               "--kappa", "0.05", "--store", str(tmp_path / "store"), "--cache", str(tmp_path / "cache")]
+    assert main(["bench", *options]) == 0
+    assert "5 cells computed" in capsys.readouterr().out  # 2 x Tgt, 2 x Tgt+Edited, the edit
+    assert main(["bench", *options, "--report", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [(row["column"], row["n_seeds"]) for row in rows] == [("Tgt", 2), ("Tgt+Edited", 2)]
+
+
+def write_hand_made_results(config, scores):
+    """Results of the grid's cells with the given final scores per column (one per seed)."""
+    for row in plan(config).rows:
+        for cell, score in zip(row.cells, scores.get(row.column, [])):
+            store.write_result(config.store, cell, {"final_score": score})
+
+
+def test_report_rows_and_markdown(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt", "Tgt+Src", "Tgt+Edited"))
+    write_hand_made_results(config, {"Tgt": [10.0, 20.0], "Tgt+Edited": [30.0]})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Src,Tgt+Edited", "--seeds", "0,1",
+               "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
+               "--store", config.store, "--cache", config.cache]
+    assert main(["bench", *options, "--report", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [row["column"] for row in rows] == ["Tgt", "Tgt+Src", "Tgt+Edited"]
+    for row in rows:
+        assert {"env", "target", "gap", "column", "algo", "mean", "std", "n_seeds"} <= set(row)
+        assert (row["env"], row["target"], row["gap"], row["algo"]) == ("halfcheetah", "medium-replay", "thigh", "iql")
+    assert (rows[0]["mean"], rows[0]["std"], rows[0]["n_seeds"]) == (15.0, 5.0, 2)
+    assert (rows[1]["mean"], rows[1]["n_seeds"]) == (None, 0)
+    assert (rows[2]["mean"], rows[2]["std"], rows[2]["n_seeds"]) == (30.0, 0.0, 1)
+
+    png = tmp_path / "table.png"
+    assert main(["bench", *options, "--report", "--png", str(png)]) == 0
+    table = capsys.readouterr().out
+    assert "| 15.0 ± 5.0 | — | 30.0 ± 0.0 (+100.0%) |" in table
+    assert png.is_file()
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--columns", "Tgt,Tgt+Magic", "unknown column 'Tgt+Magic'"),
+    ("--gaps", "thigh,moon", "unknown gap 'moon'"),
+    ("--envs", "hopper", "unknown env 'hopper'"),
+    ("--seeds", "0,0", "--seeds"),
+])
+def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
+    assert main(["bench", option, value, "--store", str(tmp_path / "store"), "--report"]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "store").exists()
+
+
+def test_default_grid_is_the_lite_table():
+    config = BenchConfig()
+    assert (config.envs, config.targets, config.gaps, config.columns, config.algos, config.seeds, config.steps) == (
+        ("halfcheetah", "walker2d"), ("medium-replay",), ("thigh", "gravity", "friction"), COLUMNS, ("iql",),
+        (0, 1, 2, 3, 4), 30_000)
