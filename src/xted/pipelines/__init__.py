@@ -1,1 +1,1 @@
-"""Pipelines that combine the layers below: behaviour-data generation (and, later, the bench)."""
+"""Pipelines that combine the layers below: behaviour-data generation and the bench (`xted bench`)."""
