@@ -21,7 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from xted.atomic import atomic_path  # noqa: E402
-from xted.rl.online import read_evals  # noqa: E402
+from xted.rl.run_folder import read_evals  # noqa: E402
 
 
 def table_row(name: str, evals: list[dict], at: int) -> str:

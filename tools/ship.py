@@ -26,7 +26,7 @@ from xted.data.formats import save
 from xted.data.shipped import MANIFEST_NAME, assets_dir
 from xted.envs import PAPER_GAPS, parse_domain
 from xted.rl.policy_io import Actor
-from xted.rl.online import read_evals
+from xted.rl.run_folder import read_evals
 
 TARGET_LEVELS = ("medium", "medium-replay", "medium-expert")
 

@@ -39,7 +39,8 @@ def train(
 
     An interrupted run continues from its last checkpoint when started again with the same
     settings (a larger --steps extends it)."""
-    from xted.rl.online import read_evals, train_online
+    from xted.rl.online import train_online
+    from xted.rl.run_folder import read_evals
 
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,

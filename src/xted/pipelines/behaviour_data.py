@@ -25,7 +25,7 @@ from xted.envs import Domain, normalized_score
 from xted.errors import InputError
 from xted.rl.collect import collect, uniform_policy
 from xted.rl.policy_io import Actor
-from xted.rl.online import actor_checkpoint, read_evals
+from xted.rl.run_folder import actor_checkpoint, read_evals
 
 LEVELS = ("random", "medium", "medium-replay", "expert", "medium-expert", "source")
 MEDIUM_FRACTION = 0.5

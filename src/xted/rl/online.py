@@ -16,7 +16,6 @@ far) and ``checkpoints/actor_STEP.msgpack``.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import time
@@ -35,6 +34,7 @@ from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.resume import resume_or_record
 from xted.rl.configs import OnlineRunConfig
+from xted.rl.run_folder import actor_checkpoint, read_evals, write_evals
 from xted.rl.evaluation import evaluate
 from xted.rl.policy_io import Actor, save_actor
 from xted.rl.sac import init_sac, sac_update
@@ -54,26 +54,6 @@ ONLINE_ALGORITHMS = {
     "sac": OnlineAlgorithm(init_sac, sac_update, "tanh_gaussian"),
     "td3": OnlineAlgorithm(init_td3bc, td3bc_update, "deterministic"),
 }
-
-
-def read_evals(run: str | Path) -> list[dict]:
-    """The evaluation rows of a run folder (or of an ``evals.csv`` copied out of one)."""
-    path = Path(run) if Path(run).suffix == ".csv" else Path(run) / "evals.csv"
-    if not path.exists():
-        return []
-    with path.open() as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-
-
-def _write_evals(run_dir: Path, rows: list[dict]) -> None:
-    with atomic_path(run_dir / "evals.csv") as tmp, tmp.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
-def actor_checkpoint(run_dir: str | Path, step: int) -> Path:
-    return Path(run_dir) / "checkpoints" / f"actor_{int(step):07d}.msgpack"
 
 
 def empty_buffer(size: int, obs_dim: int, action_dim: int) -> dict[str, np.ndarray]:
@@ -182,7 +162,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
             if step >= next_checkpoint or step >= config.total_steps:
                 evals.append(_checkpoint(run_dir, state, buffer, step, episode, explore_rng, domain, config,
                                          actor_meta, elapsed))
-                _write_evals(run_dir, evals)
+                write_evals(run_dir, evals)
                 bar.set_postfix(eval=f"{evals[-1]['return_mean']:.0f}")
                 next_checkpoint = (step // config.checkpoint_every + 1) * config.checkpoint_every
                 if _reached(evals, config):

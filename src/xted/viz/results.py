@@ -129,7 +129,7 @@ def _read_curves(kind: str, files: list[Path]) -> list[Curve]:
         rows = _checked(files[0], read_log(files[0], math.inf), ("step", "loss"))
         curves = [Curve("loss", _column(rows, "step"), _column(rows, "loss"))]
     elif kind == "online":
-        from xted.rl.online import read_evals
+        from xted.rl.run_folder import read_evals
 
         rows = _checked(files[0], read_evals(files[0]), ("step", "return_mean"))
         spread = _column(rows, "return_std") if "return_std" in rows[0] else None
