@@ -1,3 +1,4 @@
+import dataclasses
 import json
 
 import jax
@@ -114,3 +115,33 @@ def test_stop_at_return_ends_the_run_at_that_evaluation_and_a_resume_can_go_on(t
     assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000]
     train_online(domain, tmp_path / "run", OnlineRunConfig(stop_at_return=1e9, **base), progress=False)
     assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000, 2000]
+
+
+def test_init_from_starts_from_the_runs_networks_and_is_part_of_the_run(tmp_path):
+    base = dict(algo="td3", checkpoint_every=1000, eval_episodes=1, block=64, td3=TINY_TD3)
+    train_online(parse_domain("halfcheetah"), tmp_path / "expert",
+                 OnlineRunConfig(total_steps=1000, start_steps=200, **base), progress=False)
+    other = train_online(parse_domain("halfcheetah"), tmp_path / "other",
+                         OnlineRunConfig(total_steps=1000, start_steps=200, seed=1, **base), progress=False)
+    # No update before --start-steps: the fine-tuned run's first actor is the expert's last one.
+    tuned = OnlineRunConfig(total_steps=1000, start_steps=5000, init_from=str(tmp_path / "expert"), **base)
+    train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "tuned", tuned, progress=False)
+    expert = Actor.load(actor_checkpoint(tmp_path / "expert", 1000))
+    _params_equal(Actor.load(actor_checkpoint(tmp_path / "tuned", 1000)).params, expert.params)
+    with np.load(tmp_path / "tuned" / "buffer.npz") as buffer:  # acted by the expert (plus noise), not uniformly
+        greedy = expert.act(buffer["observations"][:20])
+        assert np.abs(buffer["actions"][:20] - greedy).max() < 0.5  # noise std 0.1; uniform would stray by ~1
+    with pytest.raises(InputError, match="holds another run .init_sha256"):  # another init is another run
+        train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "tuned",
+                     dataclasses.replace(tuned, init_from=str(other), total_steps=2000), progress=False)
+    with pytest.raises(InputError, match="a td3 run, but this run trains sac"):
+        train_online(parse_domain("halfcheetah"), tmp_path / "sac",
+                     OnlineRunConfig(algo="sac", total_steps=100, init_from=str(tmp_path / "expert"), sac=TINY),
+                     progress=False)
+    with pytest.raises(InputError, match="other shapes"):
+        wide = dataclasses.replace(TINY_TD3, hidden=(16, 16))
+        train_online(parse_domain("halfcheetah"), tmp_path / "wide",
+                     dataclasses.replace(tuned, td3=wide), progress=False)
+    with pytest.raises(InputError, match="not an online run folder"):
+        train_online(parse_domain("halfcheetah"), tmp_path / "none",
+                     dataclasses.replace(tuned, init_from=str(tmp_path / "missing")), progress=False)

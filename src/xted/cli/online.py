@@ -33,6 +33,9 @@ def train(
     stop_at_return: Optional[float] = typer.Option(
         OnlineRunConfig.stop_at_return, "--stop-at-return",
         help="End the run at the first greedy evaluation whose mean return reaches this."),
+    init_from: Optional[Path] = typer.Option(
+        None, "--init-from", help="Start from the networks of this finished run (same algo): fine-tune a "
+        "policy trained in another domain. It acts from the first step; updates begin after --start-steps."),
     force: bool = typer.Option(False, "--force", help="Delete a previous run in --out and start afresh."),
 ) -> None:
     """Train in a domain; checkpoints, evaluations (evals.csv) and the replay buffer go to --out.
@@ -44,7 +47,8 @@ def train(
 
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
-                             stop_at_return=stop_at_return)
+                             stop_at_return=stop_at_return,
+                             init_from=None if init_from is None else str(init_from))
     if force:
         discard_run(out, ("run.json",))
     train_online(parse_domain(env, gap), out, config)

@@ -98,6 +98,7 @@ class OnlineRunConfig:
     exploration_noise: float = 0.1  # TD3's Gaussian action noise
     seed: int = 0
     stop_at_return: float | None = None  # end the run at the first greedy evaluation that reaches this
+    init_from: str | None = None  # a finished run of the same algo whose networks this run starts from
     sac: SACConfig = SACConfig()
     td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
 

@@ -17,6 +17,7 @@ far) and ``checkpoints/actor_STEP.msgpack``.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import time
 from functools import partial
@@ -85,12 +86,16 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
                  progress: bool = True) -> Path:
     """Train (or resume) ``config.algo`` in ``domain`` until ``config.total_steps`` env steps."""
     run_dir = Path(run_dir)
-    resume_or_record(run_dir / "run.json", {"domain": dataclasses.asdict(domain), "run": config.fingerprint()})
-
     algorithm, agent = ONLINE_ALGORITHMS[config.algo], config.agent
     env = make(domain)
     obs_dim, action_dim = env.observation_space.shape[0], env.action_space.shape[0]
     state = algorithm.init(jax.random.PRNGKey(config.seed), obs_dim, action_dim, agent)
+    record = {"domain": dataclasses.asdict(domain), "run": config.fingerprint()}
+    if config.init_from is not None:
+        init_state, record["init_sha256"] = _initial_state(Path(config.init_from), state, config)
+    resume_or_record(run_dir / "run.json", record)
+    if config.init_from is not None:
+        state = init_state
     host_buffer = empty_buffer(config.total_steps, obs_dim, action_dim)
     step, episode, seconds = 0, 0, {"wall": 0.0, "cpu": 0.0}
     explore_rng = np.random.default_rng(config.seed)
@@ -132,7 +137,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
         # Fresh rows every block: the device may still be reading the last block's (zero-copy, async).
         rows = empty_buffer(config.block, obs_dim, action_dim)
         for i in range(n):
-            if step < config.start_steps:
+            if step < config.start_steps and config.init_from is None:
                 action = explore_rng.uniform(-1.0, 1.0, action_dim).astype(np.float32)
             else:
                 action = actor.act(obs[None], explore_rng)[0]
@@ -170,6 +175,25 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
             obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
     bar.close()
     return run_dir
+
+
+def _initial_state(init_run: Path, state, config: OnlineRunConfig) -> tuple[Any, str]:
+    """The networks and optimiser state at the end of ``init_run`` (same algo and sizes), and the
+    SHA-256 of the file they come from, which the new run records: a resume must start from the same."""
+    state_file = init_run / "state.msgpack"
+    if not state_file.is_file() or not (init_run / "run.json").is_file():
+        raise InputError(f"--init-from {init_run}: not an online run folder (needs run.json and state.msgpack)")
+    their_algo = json.loads((init_run / "run.json").read_text())["run"]["algo"]
+    if their_algo != config.algo:
+        raise InputError(f"--init-from {init_run}: a {their_algo} run, but this run trains {config.algo}")
+    raw = state_file.read_bytes()
+    try:
+        loaded = flax.serialization.from_state_dict(state, flax.serialization.msgpack_restore(raw)["state"])
+    except (ValueError, KeyError, TypeError) as error:
+        raise InputError(f"--init-from {init_run}: its networks do not fit this run ({error})") from error
+    if jax.tree_util.tree_map(np.shape, loaded) != jax.tree_util.tree_map(np.shape, state):
+        raise InputError(f"--init-from {init_run}: its networks have other shapes than this run's")
+    return loaded, hashlib.sha256(raw).hexdigest()
 
 
 def _reached(evals: list[dict], config: OnlineRunConfig) -> bool:
