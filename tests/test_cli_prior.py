@@ -125,10 +125,20 @@ def test_heldout_episodes_are_left_out_of_training(files):
 
 
 def test_demo_on_shipped_data(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path / "demo"), "--proxy-steps", "300"]) == 0
+    from xted.pipelines.bench import store
+    from xted.pipelines.bench.config import BenchConfig
+    from xted.pipelines.bench.grid import plan
+
+    bench_store = tmp_path / "bench"  # one row of the task's lite table, as `xted bench` stores it
+    grid = plan(BenchConfig(envs=("halfcheetah",), gaps=("thigh",), columns=("Tgt",), store=str(bench_store)))
+    for score, cell in zip((40.0, 44.0), grid.rows[0].cells):
+        store.write_result(bench_store, cell, {"final_score": score})
+    assert main(["demo", "--out", str(tmp_path / "demo"), "--proxy-steps", "300", "--bench-store",
+                 str(bench_store)]) == 0
     out = capsys.readouterr().out
-    edited = load(tmp_path / "demo" / "halfcheetah-gravity-edited.npz")
-    source = load("halfcheetah-gravity")
+    assert "  Tgt          42.0 ± 2.0 (2 seeds)" in out and "  Tgt+Edited   not computed" in out
+    edited = load(tmp_path / "demo" / "halfcheetah-thigh-edited.npz")
+    source = load("halfcheetah-thigh")
     assert len(edited) == len(source)
     np.testing.assert_array_equal(edited.actions[0], source.actions[0])  # the held first transition
     maes = {line.split()[0]: float(line.split("MAE=")[1].split()[0]) for line in out.splitlines() if "MAE=" in line

@@ -26,6 +26,15 @@ def table_rows(grid: Grid) -> list[dict]:
     return rows
 
 
+def task_rows(env: str, target: str, gap: str, columns: Sequence[str], store: str) -> list[dict]:
+    """The lite table's rows (IQL, the default seeds and steps) of one task, from ``store``."""
+    from xted.pipelines.bench.config import BenchConfig
+    from xted.pipelines.bench.grid import plan
+
+    config = BenchConfig(envs=(env,), targets=(target,), gaps=(gap,), columns=tuple(columns), store=store)
+    return table_rows(plan(config))
+
+
 def score_summary(scores: Sequence[float]) -> dict:
     """Mean and std (over seeds, ddof 0) of the final scores; None for none."""
     if not scores:
