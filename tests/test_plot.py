@@ -127,3 +127,12 @@ def test_bad_input_exits_2_and_writes_no_png(tmp_path, capsys, command, message)
     assert main(["plot", *[part.replace("{tmp}", str(tmp_path)) for part in command]]) == 2
     assert message in capsys.readouterr().err
     assert sorted(tmp_path.rglob("*")) == before
+
+
+@pytest.mark.parametrize("reference, closer", [(1, 17), (0, 0)])
+def test_spectrum_beside_a_target(pair, tmp_path, capsys, reference, closer):
+    """With the edit itself as the target every dim of the edit is closer to it; with the source, none."""
+    assert main(["plot", "spectrum", *pair, "--segment", "10", "--target", pair[reference],
+                 "--out", str(tmp_path / "s.png")]) == 0
+    assert f"closer to the target in {closer} of 17 state dims" in capsys.readouterr().out
+    assert png_size(tmp_path / "s.png") == (1000, 400)

@@ -96,25 +96,33 @@ def check_same_episodes(source: Dataset, edited: Dataset) -> None:
         raise InputError(f"observation dims differ: {source.observation_dim} and {edited.observation_dim}")
 
 
-def mean_spectra(source: Dataset, edited: Dataset, segment: int = 100) -> dict[str, np.ndarray | int]:
+def mean_spectra(source: Dataset, edited: Dataset, segment: int = 100,
+                 reference: Dataset | None = None) -> dict[str, np.ndarray | int]:
     """rFFT magnitude per state dimension of source and edit, averaged over every aligned segment.
 
     Each episode is cut into consecutive ``segment``-step pieces (a shorter rest is dropped), every
     dimension standardised by the source's mean and standard deviation. Returns ``frequency``
     (fraction of the Nyquist frequency, as ``cutoff``), ``source`` and ``edited`` (``[F, D]``, the
-    magnitude divided by ``segment``) and ``segments``, how many were averaged.
+    magnitude divided by ``segment``) and ``segments``, how many were averaged. With ``reference``
+    (the target data, other episodes) also ``reference``: its spectrum in the same units, to tell
+    whether what the edit changed moves the source toward the target's motion.
     """
     check_same_episodes(source, edited)
     if segment < 2:
         raise InputError(f"segment must be at least 2 steps, got {segment}")
     mean, scale = _standardizer(source)
-    pieces: dict[str, list[np.ndarray]] = {"source": [], "edited": []}
-    for start, end in source.episode_bounds():
-        for first in range(start, end - segment + 1, segment):
-            for name, data in (("source", source), ("edited", edited)):
-                pieces[name].append((data.observations[first : first + segment] - mean) / scale)
-    if not pieces["source"]:
-        raise InputError(f"no episode has {segment} steps; the longest has {int(source.episode_lengths().max())}")
-    spectra = {name: np.abs(np.fft.rfft(np.stack(p).astype(np.float64), axis=1)).mean(axis=0) / segment
-               for name, p in pieces.items()}
-    return {"frequency": np.fft.rfftfreq(segment) * 2.0, **spectra, "segments": len(pieces["source"])}
+    datasets = {"source": source, "edited": edited, **({} if reference is None else {"reference": reference})}
+    if reference is not None and reference.observation_dim != source.observation_dim:
+        raise InputError(f"observation dims differ: {source.observation_dim} and {reference.observation_dim} "
+                         "(the reference)")
+    spectra = {}
+    for name, data in datasets.items():
+        pieces = [(data.observations[first : first + segment] - mean) / scale
+                  for start, end in data.episode_bounds() for first in range(start, end - segment + 1, segment)]
+        if not pieces:
+            raise InputError(f"no {name} episode has {segment} steps; the longest has "
+                             f"{int(data.episode_lengths().max())}")
+        spectra[name] = np.abs(np.fft.rfft(np.stack(pieces).astype(np.float64), axis=1)).mean(axis=0) / segment
+        if name == "source":
+            spectra["segments"] = len(pieces)
+    return {"frequency": np.fft.rfftfreq(segment) * 2.0, **spectra}

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
+import numpy as np
 import typer
 
 from xted.errors import InputError
@@ -49,16 +50,32 @@ def spectrum(
     segment: int = typer.Option(PlotDefaults.segment, "--segment", min=2, help="Steps per FFT segment."),
     cutoff: float = typer.Option(PlotDefaults.cutoff, "--cutoff", min=0.01, max=1.0,
                                  help="Low-frequency band to shade, as a fraction of the Nyquist frequency."),
+    target: Optional[str] = typer.Option(None, "--target",
+                                         help="Target data (path or shipped name) whose spectrum to draw beside."),
 ) -> None:
     """FFT magnitude of source against edited states (the paper's frequency analysis): every
     episode cut into aligned segments, each state dim in the source's standard deviations, the
-    magnitudes averaged over segments and dims; and their ratio per frequency."""
+    magnitudes averaged over segments and dims; and their ratio per frequency. With --target, the
+    target data's spectrum in the same units too: whether what the edit changed moves toward the
+    target's motion (printed for the upper half of the band)."""
     from xted.data import load
     from xted.viz.plots import check_png_path, save_png, spectrum_figure
 
     check_png_path(out)
-    figure = spectrum_figure(load(source), load(edited), segment, cutoff, (Path(source).stem, Path(edited).stem))
+    names = (Path(source).stem, Path(edited).stem) + (() if target is None else (Path(target).stem,))
+    reference = None if target is None else load(target)
+    figure = spectrum_figure(load(source), load(edited), segment, cutoff, names, reference)
     typer.echo(save_png(figure, out))
+    if reference is not None:
+        from xted.analysis.content import mean_spectra
+
+        spectra = mean_spectra(load(source), load(edited), segment, reference)
+        upper = spectra["frequency"] > 0.5
+        levels = {name: spectra[name][upper].mean(axis=0) for name in ("source", "edited", "reference")}
+        closer = np.abs(levels["edited"] - levels["reference"]) < np.abs(levels["source"] - levels["reference"])
+        typer.echo(f"above half the Nyquist frequency, mean magnitude: source {levels['source'].mean():.4f}, "
+                   f"edited {levels['edited'].mean():.4f}, target {levels['reference'].mean():.4f}; "
+                   f"the edit is closer to the target in {int(closer.sum())} of {len(closer)} state dims")
 
 
 @app.command("trajectory")

@@ -82,12 +82,14 @@ def dynamics_figure(rows: list[dict]) -> Figure:
 
 
 def spectrum_figure(source: Dataset, edited: Dataset, segment: int = 100, cutoff: float = 0.2,
-                    names: tuple[str, str] = ("source", "edited")) -> Figure:
+                    names: tuple[str, ...] = ("source", "edited"), reference: Dataset | None = None) -> Figure:
     """FFT magnitude of source and edited states, averaged over aligned segments and state dims,
-    and their ratio per frequency (``xted.analysis.content.mean_spectra``)."""
-    spectra = mean_spectra(source, edited, segment)
+    and their ratio per frequency (``xted.analysis.content.mean_spectra``); with ``reference`` (the
+    target data; ``names[2]``) its spectrum too, in the source's units."""
+    spectra = mean_spectra(source, edited, segment, reference)
     frequency = spectra["frequency"]
-    magnitude = {name: spectra[name].mean(axis=1) for name in ("source", "edited")}
+    shown = ("source", "edited") + (("reference",) if reference is not None else ())
+    magnitude = {name: spectra[name].mean(axis=1) for name in shown}
     figure = Figure(figsize=(10, 4), layout="constrained")
     levels, ratio = figure.subplots(1, 2)
     for axis in (levels, ratio):
@@ -97,6 +99,8 @@ def spectrum_figure(source: Dataset, edited: Dataset, segment: int = 100, cutoff
         axis.set_xlim(0, 1)
     levels.semilogy(frequency, magnitude["source"], color=COLORS["source"], label=names[0])
     levels.semilogy(frequency, magnitude["edited"], color=COLORS["edited"], label=names[1])
+    if reference is not None:
+        levels.semilogy(frequency, magnitude["reference"], color=COLORS["target"], label=names[2])
     levels.set_ylabel("|FFT| / segment length\n(source std units, mean over state dims)")
     levels.set_title("magnitude spectrum", fontsize=10)
     levels.legend(fontsize=8)
@@ -104,8 +108,13 @@ def spectrum_figure(source: Dataset, edited: Dataset, segment: int = 100, cutoff
     # given in the title so that it does not set the scale of the others.
     ratios = magnitude["edited"] / magnitude["source"]
     ratio.plot(frequency[1:], ratios[1:], color=COLORS["edited"])
+    if reference is not None:
+        ratio.plot(frequency[1:], magnitude["reference"][1:] / magnitude["source"][1:], color=COLORS["target"],
+                   label=f"{names[2]} / {names[0]}")
+        ratio.plot([], [], color=COLORS["edited"], label=f"{names[1]} / {names[0]}")
+        ratio.legend(fontsize=8)
     ratio.axhline(1.0, color="black", linewidth=0.8)
-    ratio.set_ylabel("edited / source magnitude")
+    ratio.set_ylabel("magnitude / source magnitude")
     ratio.set_title(f"what the edit changed, per frequency (mean level: {ratios[0]:.2f})", fontsize=10)
     figure.suptitle(f"State spectra: {spectra['segments']} aligned segments of {segment} steps")
     return figure
