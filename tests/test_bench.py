@@ -12,7 +12,8 @@ import pytest
 
 from xted.cli.main import main
 from xted.data import load
-from xted.pipelines.bench import cells, grid, run, store
+from xted.errors import InputError
+from xted.pipelines.bench import cells, grid, ray_executor, run, store
 from xted.pipelines.bench.config import COLUMNS, BenchConfig
 from xted.pipelines.bench.grid import first_transitions, plan
 from xted.pipelines.bench.run import CellsFailed, run_bench
@@ -200,6 +201,15 @@ def test_failed_cells_are_named_and_exit_1(tmp_path, capsys, monkeypatch):
     out, err = capsys.readouterr()
     assert "1 cells computed" in out
     assert "failed: tgt-iql-seed0-abc: its worker died, 5 times" in err and "1 cells failed" in err
+
+
+def test_an_edit_task_refuses_a_prior_folder_other_than_the_planned_one(tmp_path):
+    """A Ray worker reads the prior at the driver's path: a different folder there is refused, not used."""
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,))
+    cell = next(iter(plan(config).learners.values())).data_cell
+    other = dataclasses.replace(cell, inputs={**cell.inputs, "prior": "0" * 64})
+    with pytest.raises(InputError, match="differs from the driver's"):
+        ray_executor._make(other, None, refuse_training)
 
 
 def test_default_grid_is_the_lite_table():
