@@ -5,16 +5,18 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 
 import numpy as np
 import pytest
 
 from xted.cli.main import main
 from xted.data import load
-from xted.pipelines.bench import cells, grid, store
+from xted.errors import InputError
+from xted.pipelines.bench import cells, grid, ray_executor, run, store
 from xted.pipelines.bench.config import COLUMNS, BenchConfig
 from xted.pipelines.bench.grid import first_transitions, plan
-from xted.pipelines.bench.run import run_bench
+from xted.pipelines.bench.run import CellsFailed, run_bench
 
 TINY = dict(envs=("halfcheetah",), gaps=("thigh", "gravity"), seeds=(0, 1), steps=10, eval_every=10,
             eval_episodes=1, transitions=200)
@@ -168,6 +170,46 @@ def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
     assert main(["bench", option, value, "--store", str(tmp_path / "store"), "--report"]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "store").exists()
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--address", "head:6379"], "--address: only with --executor ray"),
+    (["--retries", "3", "--cpus-per-task", "2"], "--retries, --cpus-per-task: only with --executor ray"),
+    (["--executor", "spark"], "--executor 'spark': expected local or ray"),
+    (["--executor", "ray", "--report"], "--report only reads them"),
+])
+def test_bad_executor_options_exit_2(tmp_path, capsys, options, message):
+    assert main(["bench", *options, "--store", str(tmp_path / "store")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "store").exists()
+
+
+def test_the_ray_executor_without_ray_names_the_fix(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails as where it is not installed
+    assert main(["bench", "--executor", "ray", "--store", str(tmp_path / "store")]) == 2
+    assert "pip install 'xted[ray]'" in capsys.readouterr().err
+    assert not (tmp_path / "store").exists()
+
+
+def test_failed_cells_are_named_and_exit_1(tmp_path, capsys, monkeypatch):
+    def failing(config, echo, ray):
+        assert ray.retries == 4 and ray.address is None
+        raise CellsFailed([("tgt-iql-seed0-abc", "its worker died, 5 times")], ["src-iql-seed0-def"])
+
+    monkeypatch.setattr(run, "run_bench", failing)
+    assert main(["bench", "--executor", "ray", "--retries", "4", "--store", str(tmp_path / "store")]) == 1
+    out, err = capsys.readouterr()
+    assert "1 cells computed" in out
+    assert "failed: tgt-iql-seed0-abc: its worker died, 5 times" in err and "1 cells failed" in err
+
+
+def test_an_edit_task_refuses_a_prior_folder_other_than_the_planned_one(tmp_path):
+    """A Ray worker reads the prior at the driver's path: a different folder there is refused, not used."""
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,))
+    cell = next(iter(plan(config).learners.values())).data_cell
+    other = dataclasses.replace(cell, inputs={**cell.inputs, "prior": "0" * 64})
+    with pytest.raises(InputError, match="differs from the driver's"):
+        ray_executor._make(other, None, refuse_training)
 
 
 def test_default_grid_is_the_lite_table():

@@ -11,9 +11,10 @@ import typer
 from xted.cli.main import app
 from xted.cli.policy import parse_seeds
 from xted.errors import InputError
-from xted.pipelines.bench.config import COLUMNS, BenchConfig
+from xted.pipelines.bench.config import COLUMNS, BenchConfig, RayConfig
 
 DEFAULTS = BenchConfig()
+RAY_DEFAULTS = RayConfig()
 
 
 def _names(text: str, option: str) -> tuple[str, ...]:
@@ -55,6 +56,19 @@ def bench(
     report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
     as_json: bool = typer.Option(False, "--json", help="With --report: print {\"rows\": [...]}."),
     png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
+    executor: str = typer.Option("local", "--executor",
+                                 help="local: one group of seeds after another here; ray: as Ray tasks."),
+    address: Optional[str] = typer.Option(
+        None, "--address", help="With --executor ray: a Ray cluster's head, HOST:6379 (default: a local instance)."),
+    retries: Optional[int] = typer.Option(
+        None, "--retries", min=0, max=100,
+        help=f"With --executor ray: reruns of a task whose worker died (default {RAY_DEFAULTS.retries})."),
+    cpus_per_task: Optional[int] = typer.Option(
+        None, "--cpus-per-task", min=1, max=1024,
+        help=f"With --executor ray: CPUs each task reserves (default {RAY_DEFAULTS.cpus_per_task})."),
+    gpus_per_task: Optional[float] = typer.Option(
+        None, "--gpus-per-task", min=0.0, max=64.0,
+        help="With --executor ray: GPUs each edit and learner task reserves (default 1 where the cluster has GPUs)."),
 ) -> None:
     """Run the Table 1 grid (env x target x gap x column x algo x seed), skipping every cell whose
     result is stored under its current key; or, with --report, show the stored results of this grid."""
@@ -66,10 +80,19 @@ def bench(
         cache=str(cache))
     if (as_json or png is not None) and not report:
         raise InputError("--json and --png go with --report")
+    ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
+                      gpus_per_task=gpus_per_task)
     if not report:
-        from xted.pipelines.bench.run import run_bench
+        from xted.pipelines.bench.run import CellsFailed, run_bench
 
-        computed = run_bench(config, echo=typer.echo)
+        try:
+            computed = run_bench(config, echo=typer.echo, ray=ray)
+        except CellsFailed as err:
+            typer.echo(f"bench: {len(err.computed)} cells computed; results in {store}")
+            for name, why in err.failed:
+                typer.echo(f"bench: failed: {name}: {why}", err=True)
+            typer.echo(f"xted: error: {len(err.failed)} cells failed (rerun to retry them)", err=True)
+            raise typer.Exit(1) from None
         typer.echo(f"bench: {len(computed)} cells computed; results in {store}")
         return
     from xted.pipelines.bench.grid import plan
@@ -88,3 +111,18 @@ def bench(
         from xted.viz.plots import save_png, table_figure
 
         save_png(table_figure(rows), png)
+
+
+def _ray_config(executor: str, report: bool, **given) -> RayConfig | None:
+    """The Ray settings for ``--executor ray``; None for the local executor, which takes none of them."""
+    if executor not in ("local", "ray"):
+        raise InputError(f"--executor {executor!r}: expected local or ray")
+    options = {name: value for name, value in given.items() if value is not None}
+    flags = ", ".join("--" + name.replace("_", "-") for name in options)
+    if executor == "local":
+        if options:
+            raise InputError(f"{flags}: only with --executor ray")
+        return None
+    if report:
+        raise InputError("--executor ray computes cells; --report only reads them")
+    return RayConfig(**options)

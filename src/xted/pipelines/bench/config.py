@@ -62,3 +62,30 @@ class BenchConfig:
     def prior_paths(self) -> dict[str, str]:
         """``--prior`` pairs as ``{ENV or ENV-TARGET: PATH}``."""
         return dict(pair.split("=", 1) for pair in self.priors)
+
+
+@dataclasses.dataclass(frozen=True)
+class RayConfig:
+    """Running the grid as Ray tasks (``xted bench --executor ray``).
+
+    ``address``: a running cluster's head (``HOST:6379``, or ``auto``); None starts a local Ray
+    instance sized to this machine. ``retries``: how many times a task whose worker died (killed,
+    out of memory, node lost) is run again before its cells are reported failed; an exception in a
+    cell is deterministic and reported at once. ``cpus_per_task``: CPUs each task reserves;
+    ``gpus_per_task``: GPUs each edit and learner task reserves (None: one where the cluster has
+    GPUs, else none; oracle relabellings run on CPUs)."""
+
+    address: str | None = None
+    retries: int = 2
+    cpus_per_task: int = 1
+    gpus_per_task: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.address is not None and not self.address.strip():
+            raise InputError("--address: expected HOST:PORT of a Ray head (or 'auto')")
+        if self.retries < 0:
+            raise InputError(f"--retries must be >= 0, got {self.retries}")
+        if self.cpus_per_task < 1:
+            raise InputError(f"--cpus-per-task must be >= 1, got {self.cpus_per_task}")
+        if self.gpus_per_task is not None and self.gpus_per_task < 0:
+            raise InputError(f"--gpus-per-task must be >= 0, got {self.gpus_per_task}")

@@ -1,17 +1,44 @@
 """Working through the grid: every learner cell without a stored result is trained, its seeds
-together, after the edit or oracle data it reads (made once, kept in the cache, reused)."""
+together, after the edit or oracle data it reads (made once, kept in the cache, reused).
+
+The pieces here are shared by both executors: ``pending`` (what is left), ``data_of`` (a data
+cell from the cache or made now), ``group_records`` (train one group of seeds; what the store
+keeps of each) and ``store_records``. The local executor runs the groups one after another in
+this process; ``ray_executor`` runs the same functions as Ray tasks and writes what they return.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from tqdm.auto import tqdm
 
 from xted.data import Dataset, load, save
 from xted.pipelines.bench import cells, store
-from xted.pipelines.bench.config import BenchConfig
+from xted.pipelines.bench.config import BenchConfig, RayConfig
 from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, plan
+
+
+@dataclasses.dataclass(frozen=True)
+class Work:
+    """What computes cells: ``make_data(cell, source)`` and ``train_group(cells, training, progress)``.
+
+    The defaults are the real computations; a test may pass stand-ins (a Ray task receives them
+    as arguments, so they reach its worker)."""
+
+    make_data: Callable[[DataCell, Dataset], Dataset] = cells.make_data
+    train_group: Callable[[Sequence[LearnerCell], Sequence[Dataset], bool], list[dict]] = cells.train_group
+
+
+class CellsFailed(RuntimeError):
+    """Cells that failed after their retries: ``failed`` pairs each cell's name with why; ``computed``
+    names the cells whose results were stored before and around them."""
+
+    def __init__(self, failed: list[tuple[str, str]], computed: list[str]):
+        super().__init__(f"{len(failed)} cells failed: " + "; ".join(f"{name} ({why})" for name, why in failed))
+        self.failed, self.computed = failed, computed
 
 
 def pending(grid: Grid) -> list[list[LearnerCell]]:
@@ -23,61 +50,121 @@ def pending(grid: Grid) -> list[list[LearnerCell]]:
     return list(groups.values())
 
 
-def data_of(grid: Grid, cell: DataCell) -> tuple[Dataset, bool]:
-    """The cell's data from the cache where it is there and is what the store recorded; else made
-    now (cached, recorded). Returns the data and whether it was made."""
-    config = grid.config
-    record, path = store.read_result(config.store, cell), store.data_path(config.cache, cell)
+def data_needed(groups: list[list[LearnerCell]]) -> list[DataCell]:
+    """The data cells the groups read, each once, in the order the groups need them."""
+    found: dict[str, DataCell] = {}
+    for group in groups:
+        for ref in group[0].training:
+            if isinstance(ref, DataCell):
+                found.setdefault(ref.key, ref)
+    return list(found.values())
+
+
+def cached_data(grid: Grid, cell: DataCell) -> Dataset | None:
+    """The cell's data from the cache where it is there and is what the store recorded."""
+    record, path = store.read_result(grid.config.store, cell), store.data_path(grid.config.cache, cell)
     if record is not None and path.is_file():
         data = load(path)
         if data.fingerprint() == record["data_fingerprint"]:
-            return data, False
+            return data
+    return None
+
+
+def make_data(cell: DataCell, source: Dataset, make: Callable[[DataCell, Dataset], Dataset]) -> tuple[Dataset, float]:
+    """The cell's data made from its source, and the seconds it took."""
     began = time.perf_counter()
-    data = cells.make_data(cell, grid.datasets[cell.source])
+    data = make(cell, source)
+    return data, time.perf_counter() - began
+
+
+def keep_data(config: BenchConfig, cell: DataCell, data: Dataset, seconds: float) -> None:
+    """Cache made data and record it in the store (both atomically)."""
+    path = store.data_path(config.cache, cell)
     path.parent.mkdir(parents=True, exist_ok=True)
     save(data, path)
     store.write_result(config.store, cell, {
         "kind": cell.kind, "env": cell.env, "target": cell.target, "gap": cell.gap,
-        "data_fingerprint": data.fingerprint(), "transitions": len(data),
-        "seconds": time.perf_counter() - began})
+        "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds})
+
+
+def data_of(grid: Grid, cell: DataCell, work: Work = Work()) -> tuple[Dataset, bool]:
+    """The cell's data from the cache, else made now (cached, recorded); and whether it was made."""
+    data = cached_data(grid, cell)
+    if data is not None:
+        return data, False
+    data, seconds = make_data(cell, grid.datasets[cell.source], work.make_data)
+    keep_data(grid.config, cell, data, seconds)
     return data, True
 
 
-def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], None] = print) -> list[str]:
-    """Compute every missing cell of ``config``'s grid; returns the names of the cells computed."""
+def group_records(group: Sequence[LearnerCell], training: Sequence[Dataset], work: Work,
+                  progress: bool = False) -> list[dict]:
+    """Train one group of seeds together; each cell's result as the store keeps it."""
+    data_cell = group[0].data_cell
+    fingerprints = {"training_data": [data.fingerprint() for data in training]}
+    if data_cell is not None:
+        fingerprints[f"{data_cell.kind}_key"] = data_cell.key
+    records = []
+    for cell, result in zip(group, work.train_group(group, training, progress), strict=True):
+        identity = {"env": cell.env, "target": cell.target, "gap": cell.gap, "column": cell.column,
+                    "algo": cell.algo}
+        records.append({**identity, **result, **fingerprints})
+    return records
+
+
+def store_records(config: BenchConfig, group: Sequence[LearnerCell], records: Sequence[dict]) -> list[str]:
+    """Write each cell's record (atomically); returns the cells' names."""
+    for cell, record in zip(group, records, strict=True):
+        store.write_result(config.store, cell, record)
+    return [cell.name for cell in group]
+
+
+def group_label(group: Sequence[LearnerCell]) -> str:
+    first = group[0]
+    return f"{first.env} {first.name.rsplit('-seed', 1)[0]}"
+
+
+def run_local(grid: Grid, groups: list[list[LearnerCell]], progress: bool, work: Work) -> list[str]:
+    """One group after another in this process, each after the data it reads."""
+    made: dict[str, Dataset] = {}
+    computed: list[str] = []
+    bar = tqdm(total=len(grid.learners), initial=len(grid.learners) - sum(map(len, groups)), desc="bench cells",
+               unit="cell", disable=not progress, smoothing=0.0)
+    for group in groups:
+        bar.set_postfix_str(f"running {len(group)} ({group_label(group)}), "
+                            f"{bar.total - bar.n - len(group)} left after them")
+        training = []
+        for ref in group[0].training:
+            if isinstance(ref, DataCell):
+                if ref.key not in made:
+                    made[ref.key], fresh = data_of(grid, ref, work)
+                    computed += [ref.name] if fresh else []
+                training.append(made[ref.key])
+            else:
+                training.append(grid.datasets[ref])
+        computed += store_records(grid.config, group, group_records(group, training, work, progress))
+        bar.update(len(group))
+    bar.close()
+    return computed
+
+
+def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], None] = print,
+              ray: RayConfig | None = None, work: Work = Work()) -> list[str]:
+    """Compute every missing cell of ``config``'s grid, here or (``ray``) as Ray tasks; returns the
+    names of the cells computed. Cells that fail on Ray raise ``CellsFailed`` once every other
+    cell's result is stored."""
+    if ray is not None:
+        from xted.pipelines.bench import ray_executor
+
+        ray_executor.import_ray()  # refuse a missing Ray before planning
     grid = plan(config)
     for message in grid.blocked:
         echo(f"bench: {message}")
     groups = pending(grid)
     todo = sum(len(group) for group in groups)
+    where = "" if ray is None else " as Ray tasks (a task is a group of seeds, as locally)"
     echo(f"bench: {len(grid.learners)} learner cells, {len(grid.learners) - todo} done, {todo} to train "
-         f"in {len(groups)} groups of seeds")
-    made: dict[str, Dataset] = {}
-    computed: list[str] = []
-    bar = tqdm(total=len(grid.learners), initial=len(grid.learners) - todo, desc="bench cells", unit="cell",
-               disable=not progress, smoothing=0.0)
-    for group in groups:
-        first = group[0]
-        bar.set_postfix_str(f"running {len(group)} ({first.env} {first.name.rsplit('-seed', 1)[0]}), "
-                            f"{bar.total - bar.n - len(group)} left after them")
-        training = []
-        for ref in first.training:
-            if isinstance(ref, DataCell):
-                if ref.key not in made:
-                    made[ref.key], fresh = data_of(grid, ref)
-                    computed += [ref.name] if fresh else []
-                training.append(made[ref.key])
-            else:
-                training.append(grid.datasets[ref])
-        for cell, result in zip(group, cells.train_group(group, training, progress)):
-            data_cell = cell.data_cell
-            identity = {"env": cell.env, "target": cell.target, "gap": cell.gap, "column": cell.column,
-                        "algo": cell.algo}
-            fingerprints = {"training_data": [data.fingerprint() for data in training]}
-            if data_cell is not None:
-                fingerprints[f"{data_cell.kind}_key"] = data_cell.key
-            store.write_result(config.store, cell, {**identity, **result, **fingerprints})
-            computed.append(cell.name)
-        bar.update(len(group))
-    bar.close()
-    return computed
+         f"in {len(groups)} groups of seeds{where}")
+    if ray is None:
+        return run_local(grid, groups, progress, work)
+    return ray_executor.run_on_ray(grid, groups, ray, progress, work, echo)
