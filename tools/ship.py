@@ -53,6 +53,9 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
         roles = {"expert": chosen.expert}
         if domain.is_target:
             roles["medium"] = chosen.medium
+        init_from = json.loads((run / "run.json").read_text())["run"].get("init_from")
+        # The run it started from, as a folder beside it (runs/online/NAME): where it lives here says nothing.
+        init = f" --init-from {Path(init_from).name}" if init_from else ""
         for role, source in roles.items():
             meta = Actor.load(source).meta
             step, algo = meta["step"], meta.get("algo", "sac")
@@ -62,7 +65,7 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
                                   "eval_return": evals[step]["return_mean"],
                                   "eval_normalized_score": evals[step]["normalized_score"],
                                   "trained_steps": int(max(evals)), "command": f"xted online train --env {env}" + (f" --gap {gap}" if gap else "")
-                                  + f" --algo {algo} --seed {meta['seed']} --steps {int(max(evals))} --out RUN"}
+                                  + f" --algo {algo} --seed {meta['seed']} --steps {int(max(evals))}{init} --out RUN"}
     return entries
 
 
