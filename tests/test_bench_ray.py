@@ -19,7 +19,7 @@ from xted.pipelines.bench.run import CellsFailed, Work, run_bench
 
 ray = pytest.importorskip("ray")
 
-TIMINGS = ("seconds", "updates_per_second")
+TIMINGS = ("seconds", "updates_per_second", "group_seconds")
 
 
 @pytest.fixture(scope="module")

@@ -104,11 +104,14 @@ def group_records(group: Sequence[LearnerCell], training: Sequence[Dataset], wor
     fingerprints = {"training_data": [data.fingerprint() for data in training]}
     if data_cell is not None:
         fingerprints[f"{data_cell.kind}_key"] = data_cell.key
+    began = time.perf_counter()
+    results = work.train_group(group, training, progress)
+    cost = {"group_seconds": time.perf_counter() - began, "group_size": len(group)}  # the seeds' shared wall time
     records = []
-    for cell, result in zip(group, work.train_group(group, training, progress), strict=True):
+    for cell, result in zip(group, results, strict=True):
         identity = {"env": cell.env, "target": cell.target, "gap": cell.gap, "column": cell.column,
                     "algo": cell.algo}
-        records.append({**identity, **result, **fingerprints})
+        records.append({**identity, **result, **fingerprints, **cost})
     return records
 
 
