@@ -63,13 +63,14 @@ def spectrum(
 
     check_png_path(out)
     names = (Path(source).stem, Path(edited).stem) + (() if target is None else (Path(target).stem,))
+    source_data, edited_data = load(source), load(edited)
     reference = None if target is None else load(target)
-    figure = spectrum_figure(load(source), load(edited), segment, cutoff, names, reference)
+    figure = spectrum_figure(source_data, edited_data, segment, cutoff, names, reference)
     typer.echo(save_png(figure, out))
     if reference is not None:
         from xted.analysis.content import mean_spectra
 
-        spectra = mean_spectra(load(source), load(edited), segment, reference)
+        spectra = mean_spectra(source_data, edited_data, segment, reference)
         upper = spectra["frequency"] > 0.5
         levels = {name: spectra[name][upper].mean(axis=0) for name in ("source", "edited", "reference")}
         closer = np.abs(levels["edited"] - levels["reference"]) < np.abs(levels["source"] - levels["reference"])
