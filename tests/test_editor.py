@@ -65,6 +65,22 @@ def test_edit_windows_holds_transitions(prior, hold_last):
         assert not np.allclose(y[:, 1:-1], x[:, 1:-1])
 
 
+@pytest.mark.parametrize("architecture", ["xted", "inverse_dynamics"])
+def test_hold_actions_keeps_every_action_and_edits_states_and_rewards(architecture):
+    prior = random_prior(dataclasses.replace(TINY, architecture=architecture))
+    s, a, r = _windows()
+    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(hold_actions=True),
+                                                             jax.random.key(0)))
+    np.testing.assert_array_equal(out_a, a)
+    assert not np.allclose(out_s[:, 1:], s[:, 1:])
+    assert not np.allclose(out_r[:, 1:-1], r[:, 1:-1])
+    free_s = np.asarray(edit_windows(prior, s, a, r, EditConfig(), jax.random.key(0))[0])
+    if architecture == "inverse_dynamics":  # its chain reads states alone
+        np.testing.assert_array_equal(out_s, free_s)
+    else:  # the held actions condition the denoised states
+        assert not np.allclose(out_s[:, 1:], free_s[:, 1:])
+
+
 def test_reverse_chain_starts_at_k(prior):
     # K = 10, kappa = 0.5: noise to t = k - 1 = 4, then exactly k = 5 model calls t = 4 .. 0.
     assert _plan(prior, EditConfig()).timesteps == (4, 3, 2, 1, 0)

@@ -53,6 +53,8 @@ def edit(
     iterations: int = typer.Option(EditConfig.iterations, "--iterations", min=1, help="Repeated noise+denoise rounds."),
     hold_last: bool = typer.Option(EditConfig.hold_last, "--hold-last",
                                    help="Hold the last transition of each window too."),
+    hold_actions: bool = typer.Option(EditConfig.hold_actions, "--hold-actions",
+                                      help="Keep every source action; edit states (and rewards) around them."),
     guidance: float = typer.Option(EditConfig.guidance, "--guidance", min=0.0,
                                    help="Classifier-free return guidance weight."),
     sampler: str = typer.Option(EditConfig.sampler, "--sampler", help="ddpm or ddim."),
@@ -78,8 +80,8 @@ def edit(
     formats.check_writable(formats.target(out), overwrite=force)
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
                                               "--prior": prior})
-    config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, guidance=guidance,
-                        sampler=sampler, sampler_steps=sampler_steps, seed=seed)
+    config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, hold_actions=hold_actions,
+                        guidance=guidance, sampler=sampler, sampler_steps=sampler_steps, seed=seed)
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
     if reward_data is not None and (reward_data.observation_dim, reward_data.action_dim) != (

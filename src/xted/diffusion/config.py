@@ -162,11 +162,15 @@ class PriorConfig(DenoiserConfig):
 class EditConfig:
     """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
     ``target_return``, used only with a return-conditioned prior. ``sampler_steps``: DDIM only
-    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None."""
+    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None.
+    ``hold_actions``: keep every source action and denoise states (and rewards) around them, as the
+    first transition is held (inpainting); the edit then changes what the actions lead to, not the
+    actions."""
 
     kappa: float = 0.5
     iterations: int = 1
     hold_last: bool = False
+    hold_actions: bool = False
     guidance: float = 1.0
     target_return: float = 0.9
     sampler: str = "ddpm"

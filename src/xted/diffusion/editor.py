@@ -52,6 +52,7 @@ class _Plan:
     sampler: str
     iterations: int
     hold_last: bool
+    hold_actions: bool
     guidance: float | None
     clip: float | None
 
@@ -71,6 +72,7 @@ def _plan(prior: Prior, config: EditConfig) -> _Plan:
         sampler=config.sampler,
         iterations=config.iterations,
         hold_last=config.hold_last,
+        hold_actions=config.hold_actions,
         guidance=float(config.guidance) if prior.config.return_condition else None,
         clip=config.clip_denoised,
     )
@@ -126,6 +128,8 @@ def _edit(
         out = {s: x[s].at[:, 0].set(x0[s][:, 0]) for s in streams}
         if plan.hold_last:
             out = {s: out[s].at[:, -1].set(x0[s][:, -1]) for s in streams}
+        if plan.hold_actions and "action" in out:
+            out["action"] = x0["action"]
         return out
 
     def iteration(it: jnp.ndarray, x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
@@ -150,7 +154,7 @@ def _edit(
         return edited
     out = dict(x0, state=edited["state"])
     for s, predicted in zip(("action", "reward"), apply_inverse(plan.denoiser, params, edited["state"])):
-        if predicted is not None:  # the window's last action and reward belong to no transition in it
+        if predicted is not None and not (s == "action" and plan.hold_actions):  # the window's last action and reward belong to no transition in it
             out[s] = x0[s].at[:, 1:-1].set(predicted[:, 1:])
     return out
 
