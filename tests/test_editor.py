@@ -14,7 +14,7 @@ from test_diffusion import TINY
 from xted.data import Normalizer
 from xted.diffusion import EditConfig, Prior, PriorConfig, edit_dataset, edit_windows
 from xted.diffusion.denoiser import apply_inverse
-from xted.diffusion.editor import _plan
+from xted.diffusion.editor import _plan, _predict_noise
 from xted.diffusion.objective import init_train_state
 from xted.errors import InputError
 
@@ -137,6 +137,18 @@ def test_edit_dataset_deterministic(prior, source, edited):
     for name in ("observations", "actions", "rewards", "next_observations"):
         np.testing.assert_array_equal(getattr(again, name), getattr(edited[0], name), err_msg=name)
     assert not np.allclose(other.observations, again.observations)
+
+
+def test_guidance_zero_is_the_unconditional_prediction(prior):
+    """eps(w) = eps_u + w (eps_c - eps_u) is affine in w, so eps(0) = 2 eps(1/2) - eps(1)."""
+    assert prior.config.return_condition and EditConfig().guidance == 0.0
+    s, a, r = _windows()
+    x = {"state": s, "action": a, "reward": r}
+    t, returns = np.full(BATCH, 3), np.full(BATCH, 0.9, np.float32)
+    eps = {w: _predict_noise(prior.params, _plan(prior, EditConfig(guidance=w)), x, t, returns) for w in (0.0, 0.5, 1.0)}
+    for stream in x:
+        np.testing.assert_allclose(eps[0.0][stream], 2 * eps[0.5][stream] - eps[1.0][stream], rtol=1e-4, atol=1e-5)
+        assert not np.allclose(eps[0.0][stream], eps[1.0][stream])
 
 
 def test_ddim_with_guidance(prior):

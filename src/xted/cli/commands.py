@@ -55,8 +55,9 @@ def edit(
                                    help="Hold the last transition of each window too."),
     hold_actions: bool = typer.Option(EditConfig.hold_actions, "--hold-actions",
                                       help="Keep every source action; edit states (and rewards) around them."),
-    guidance: float = typer.Option(EditConfig.guidance, "--guidance", min=0.0,
-                                   help="Classifier-free return guidance weight."),
+    guidance: float = typer.Option(
+        EditConfig.guidance, "--guidance", min=0.0,
+        help="Classifier-free return guidance weight (0: unconditional, as the paper's Table 1)."),
     sampler: str = typer.Option(EditConfig.sampler, "--sampler", help="ddpm or ddim."),
     sampler_steps: Optional[int] = typer.Option(EditConfig.sampler_steps, "--sampler-steps", min=1,
                                                 help="DDIM steps (default k)."),

@@ -161,7 +161,9 @@ class PriorConfig(DenoiserConfig):
 @dataclass(frozen=True)
 class EditConfig:
     """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
-    ``target_return``, used only with a return-conditioned prior. ``sampler_steps``: DDIM only
+    ``target_return``, used only with a return-conditioned prior; the default 0 edits
+    unconditionally, as the paper's Table 1 does (return guidance at 1 with 0.9 made IQL collapse on
+    halfcheetah thigh: BENCHMARKS.md, "Which edited stream breaks the learner"). ``sampler_steps``: DDIM only
     (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None.
     ``hold_actions``: keep every source action and denoise states (and rewards) around them, as the
     first transition is held (inpainting); the edit then changes what the actions lead to, not the
@@ -171,7 +173,7 @@ class EditConfig:
     iterations: int = 1
     hold_last: bool = False
     hold_actions: bool = False
-    guidance: float = 1.0
+    guidance: float = 0.0
     target_return: float = 0.9
     sampler: str = "ddpm"
     sampler_steps: int | None = None

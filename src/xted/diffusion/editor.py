@@ -91,6 +91,8 @@ def _predict_noise(params: Any, plan: _Plan, x: dict[str, jnp.ndarray], t: jnp.n
     if plan.guidance == 1.0:
         return apply(x, t, returns, None)
     b = t.shape[0]
+    if plan.guidance == 0.0:
+        return apply(x, t, returns, jnp.ones(b, bool))
     both = apply(
         {s: jnp.concatenate([v, v]) for s, v in x.items()},
         jnp.concatenate([t, t]),
