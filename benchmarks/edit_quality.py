@@ -72,7 +72,8 @@ def main() -> None:
             measured = edit_report(domain, source, edited, proxy)
             content = measured["content"]
             row = {
-                "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit, "prior": str(args.prior),
+                "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit,
+                "edit_config": dataclasses.asdict(config), "prior": str(args.prior),
                 "target": args.target,
                 "sim_source": measured["simulator"]["source"]["mae"], "sim_edited": measured["simulator"]["edited"]["mae"],
                 "proxy_source": measured["proxy"]["source"], "proxy_edited": measured["proxy"]["edited"],
