@@ -162,12 +162,12 @@ class PriorConfig(DenoiserConfig):
 class EditConfig:
     """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
     ``target_return``, used only with a return-conditioned prior; the default 0 edits
-    unconditionally, as the paper's Table 1 does (return guidance at 1 with 0.9 made IQL collapse on
-    halfcheetah thigh: BENCHMARKS.md, "Which edited stream breaks the learner"). ``sampler_steps``: DDIM only
-    (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised units) or None.
-    ``hold_actions``: keep every source action and denoise states (and rewards) around them, as the
-    first transition is held (inpainting); the edit then changes what the actions lead to, not the
-    actions."""
+    unconditionally, as the paper's Table 1 does (guidance 1 toward 0.9 made IQL collapse on
+    halfcheetah thigh: BENCHMARKS.md, "Which edited stream breaks the learner"). ``sampler_steps``:
+    DDIM only (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised
+    units) or None. ``hold_actions``: keep every source action and denoise states (and rewards)
+    around them, as the first transition is held (inpainting), so the edit changes what the
+    actions lead to, not the actions (an ablation)."""
 
     kappa: float = 0.5
     iterations: int = 1

@@ -156,7 +156,8 @@ def _edit(
         return edited
     out = dict(x0, state=edited["state"])
     for s, predicted in zip(("action", "reward"), apply_inverse(plan.denoiser, params, edited["state"])):
-        if predicted is not None and not (s == "action" and plan.hold_actions):  # the window's last action and reward belong to no transition in it
+        held = s == "action" and plan.hold_actions
+        if predicted is not None and not held:  # the window's last action and reward belong to no transition in it
             out[s] = x0[s].at[:, 1:-1].set(predicted[:, 1:])
     return out
 
