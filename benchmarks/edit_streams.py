@@ -8,8 +8,8 @@ actions and rewards are each taken from the source or from its edit.
 A variant names where each stream comes from, ``s`` (source) or ``e`` (edit), in the order
 states:actions:rewards; ``e:e:e`` is the edit itself, ``s:s:s`` the source. States come with their
 next states. Edited actions are clipped to the source's action range (``--no-clip``: as the edit
-wrote them). ``--added DATA`` trains on
-target + DATA as given instead (a control: target-domain data and its edit).
+wrote them). ``--added DATA`` trains on target + DATA as given instead (a control:
+target-domain data and its edit).
 """
 
 from __future__ import annotations
