@@ -117,6 +117,18 @@ def test_stop_at_return_ends_the_run_at_that_evaluation_and_a_resume_can_go_on(t
     assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000, 2000]
 
 
+def test_stop_above_pitch_ends_the_run_at_a_flipped_evaluation_and_a_larger_one_goes_on(tmp_path):
+    domain = parse_domain("halfcheetah")
+    base = dict(algo="td3", total_steps=2000, start_steps=500, checkpoint_every=1000, eval_episodes=1, td3=TINY_TD3)
+    train_online(domain, tmp_path / "run", OnlineRunConfig(stop_above_pitch=1e-9, **base), progress=False)
+    first = read_evals(tmp_path / "run")
+    assert [row["step"] for row in first] == [1000] and first[0]["root_pitch_mean"] > 1e-9
+    train_online(domain, tmp_path / "run", OnlineRunConfig(stop_above_pitch=1e9, **base), progress=False)
+    assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000, 2000]
+    with pytest.raises(InputError, match="stop_above_pitch"):
+        OnlineRunConfig(stop_above_pitch=0.0, **base)
+
+
 def test_init_from_starts_from_the_runs_networks_and_is_part_of_the_run(tmp_path):
     base = dict(algo="td3", checkpoint_every=1000, eval_episodes=1, block=64, td3=TINY_TD3)
     train_online(parse_domain("halfcheetah"), tmp_path / "expert",

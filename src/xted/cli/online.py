@@ -33,6 +33,10 @@ def train(
     stop_at_return: Optional[float] = typer.Option(
         OnlineRunConfig.stop_at_return, "--stop-at-return",
         help="End the run at the first greedy evaluation whose mean return reaches this."),
+    stop_above_pitch: Optional[float] = typer.Option(
+        OnlineRunConfig.stop_above_pitch, "--stop-above-pitch",
+        help="End the run at the first greedy evaluation whose mean |root pitch| (radians) exceeds this: "
+        "drop a cheetah that has flipped onto its back (about 3; upright runs stay under 0.5)."),
     init_from: Optional[Path] = typer.Option(
         None, "--init-from", help="Start from the networks of this finished run (same algo): fine-tune a "
         "policy trained in another domain. It acts from the first step; updates begin after --start-steps."),
@@ -47,13 +51,13 @@ def train(
 
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
-                             stop_at_return=stop_at_return,
+                             stop_at_return=stop_at_return, stop_above_pitch=stop_above_pitch,
                              init_from=None if init_from is None else str(init_from))
     if force:
         discard_run(out, ("run.json",))
     train_online(parse_domain(env, gap), out, config)
     last = read_evals(out)[-1]
-    print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score")}}))
+    print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score", "root_pitch_mean")}}))
 
 
 @app.command("evaluate")

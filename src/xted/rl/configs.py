@@ -98,6 +98,9 @@ class OnlineRunConfig:
     exploration_noise: float = 0.1  # TD3's Gaussian action noise
     seed: int = 0
     stop_at_return: float | None = None  # end the run at the first greedy evaluation that reaches this
+    # End the run at the first evaluation whose mean |root pitch| (radians) exceeds this: a cheetah
+    # on its back (about 3) is a local optimum that further training does not leave.
+    stop_above_pitch: float | None = None
     init_from: str | None = None  # a finished run of the same algo whose networks this run starts from
     sac: SACConfig = SACConfig()
     td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
@@ -110,6 +113,8 @@ class OnlineRunConfig:
                 raise InputError(f"{name} must be positive, got {getattr(self, name)}")
         if self.start_steps < 0 or self.exploration_noise < 0:
             raise InputError("start_steps and exploration_noise must be >= 0")
+        if self.stop_above_pitch is not None and not self.stop_above_pitch > 0:
+            raise InputError(f"stop_above_pitch must be > 0 radians, got {self.stop_above_pitch}")
         if self.td3.behaviour_cloning:
             raise InputError("online TD3 has no behaviour data to clone: td3.behaviour_cloning must be False")
 
@@ -122,5 +127,6 @@ class OnlineRunConfig:
         fields = json.loads(json.dumps(dataclasses.asdict(self)))
         fields.pop("total_steps")
         fields.pop("stop_at_return")
+        fields.pop("stop_above_pitch")
         fields.pop("sac" if self.algo == "td3" else "td3")
         return fields

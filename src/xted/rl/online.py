@@ -111,7 +111,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
         with np.load(run_dir / "buffer.npz") as stored:
             for key in BUFFER_FIELDS:
                 host_buffer[key][:step] = stored[key][:step]
-    if step >= config.total_steps or _reached(evals, config):
+    if step >= config.total_steps or _should_stop(evals, config):
         return run_dir
 
     # The device buffer has one block of slack: a block's padded rows never clip at the end.
@@ -170,7 +170,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
                 write_evals(run_dir, evals)
                 bar.set_postfix(eval=f"{evals[-1]['return_mean']:.0f}")
                 next_checkpoint = (step // config.checkpoint_every + 1) * config.checkpoint_every
-                if _reached(evals, config):
+                if _should_stop(evals, config):
                     break
             obs, _ = env.reset(seed=config.seed * 1_000_003 + episode)
     bar.close()
@@ -196,8 +196,14 @@ def _initial_state(init_run: Path, state, config: OnlineRunConfig) -> tuple[Any,
     return loaded, hashlib.sha256(raw).hexdigest()
 
 
-def _reached(evals: list[dict], config: OnlineRunConfig) -> bool:
-    return config.stop_at_return is not None and bool(evals) and evals[-1]["return_mean"] >= config.stop_at_return
+def _should_stop(evals: list[dict], config: OnlineRunConfig) -> bool:
+    """The last evaluation reached ``stop_at_return`` or found the body over ``stop_above_pitch``."""
+    if not evals:
+        return False
+    last = evals[-1]
+    reached = config.stop_at_return is not None and last["return_mean"] >= config.stop_at_return
+    flipped = config.stop_above_pitch is not None and last["root_pitch_mean"] > config.stop_above_pitch
+    return reached or flipped
 
 
 def _checkpoint(run_dir: Path, state, buffer, step, episode, explore_rng, domain, config, actor_meta,
