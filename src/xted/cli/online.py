@@ -57,7 +57,8 @@ def train(
         discard_run(out, ("run.json",))
     train_online(parse_domain(env, gap), out, config)
     last = read_evals(out)[-1]
-    print(json.dumps({"run": str(out), **{k: last[k] for k in ("step", "return_mean", "normalized_score", "root_pitch_mean")}}))
+    shown = ("step", "return_mean", "normalized_score", "root_pitch_mean")
+    print(json.dumps({"run": str(out), **{k: last[k] for k in shown}}))
 
 
 @app.command("evaluate")
