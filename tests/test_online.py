@@ -129,6 +129,23 @@ def test_stop_above_pitch_ends_the_run_at_a_flipped_evaluation_and_a_larger_one_
         OnlineRunConfig(stop_above_pitch=0.0, **base)
 
 
+def test_terminate_above_pitch_ends_training_episodes_where_the_body_tips_and_is_part_of_the_run(tmp_path):
+    domain = parse_domain("halfcheetah")
+    base = dict(algo="td3", total_steps=300, start_steps=300, checkpoint_every=300, eval_episodes=1, td3=TINY_TD3)
+    threshold = 0.05
+    train_online(domain, tmp_path / "upright", OnlineRunConfig(terminate_above_pitch=threshold, **base), progress=False)
+    train_online(domain, tmp_path / "plain", OnlineRunConfig(**base), progress=False)
+    upright, plain = (np.load(tmp_path / name / "buffer.npz") for name in ("upright", "plain"))
+    tipped = np.abs(upright["next_observations"][:, 1]) > threshold
+    np.testing.assert_array_equal(upright["terminals"], tipped)
+    assert tipped.any() and not plain["terminals"].any()
+    with pytest.raises(InputError, match="another run"):  # another training MDP: not the same run
+        train_online(domain, tmp_path / "plain", OnlineRunConfig(terminate_above_pitch=threshold, **base),
+                     progress=False)
+    with pytest.raises(InputError, match="terminate_above_pitch"):
+        OnlineRunConfig(terminate_above_pitch=-1.0, **base)
+
+
 def test_init_from_starts_from_the_runs_networks_and_is_part_of_the_run(tmp_path):
     base = dict(algo="td3", checkpoint_every=1000, eval_episodes=1, block=64, td3=TINY_TD3)
     train_online(parse_domain("halfcheetah"), tmp_path / "expert",

@@ -53,9 +53,11 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
         roles = {"expert": chosen.expert}
         if domain.is_target:
             roles["medium"] = chosen.medium
-        init_from = json.loads((run / "run.json").read_text())["run"].get("init_from")
+        settings = json.loads((run / "run.json").read_text())["run"]
+        init_from, tipping = settings.get("init_from"), settings.get("terminate_above_pitch")
         # The run it started from, as a folder beside it (runs/online/NAME): where it lives here says nothing.
         init = f" --init-from {Path(init_from).name}" if init_from else ""
+        init += f" --terminate-above-pitch {tipping}" if tipping is not None else ""
         for role, source in roles.items():
             meta = Actor.load(source).meta
             step, algo = meta["step"], meta.get("algo", "sac")

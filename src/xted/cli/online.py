@@ -37,6 +37,10 @@ def train(
         OnlineRunConfig.stop_above_pitch, "--stop-above-pitch",
         help="End the run at the first greedy evaluation whose mean |root pitch| (radians) exceeds this: "
         "drop a cheetah that has flipped onto its back (about 3; upright runs stay under 0.5)."),
+    terminate_above_pitch: Optional[float] = typer.Option(
+        OnlineRunConfig.terminate_above_pitch, "--terminate-above-pitch",
+        help="While training, end an episode (as a terminal) when |root pitch| exceeds this many radians, "
+        "so a halfcheetah learns to run upright; evaluations and datasets use the plain domain."),
     init_from: Optional[Path] = typer.Option(
         None, "--init-from", help="Start from the networks of this finished run (same algo): fine-tune a "
         "policy trained in another domain. It acts from the first step; updates begin after --start-steps."),
@@ -52,6 +56,7 @@ def train(
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
                              stop_at_return=stop_at_return, stop_above_pitch=stop_above_pitch,
+                             terminate_above_pitch=terminate_above_pitch,
                              init_from=None if init_from is None else str(init_from))
     if force:
         discard_run(out, ("run.json",))

@@ -101,6 +101,9 @@ class OnlineRunConfig:
     # End the run at the first evaluation whose mean |root pitch| (radians) exceeds this: a cheetah
     # on its back (about 3) is a local optimum that further training does not leave.
     stop_above_pitch: float | None = None
+    # Training only: end an episode (a terminal, as a fall ends a walker's) once |root pitch| exceeds
+    # this, so the policy learns to stay upright. Evaluations and the data made later run the plain domain.
+    terminate_above_pitch: float | None = None
     init_from: str | None = None  # a finished run of the same algo whose networks this run starts from
     sac: SACConfig = SACConfig()
     td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
@@ -113,8 +116,9 @@ class OnlineRunConfig:
                 raise InputError(f"{name} must be positive, got {getattr(self, name)}")
         if self.start_steps < 0 or self.exploration_noise < 0:
             raise InputError("start_steps and exploration_noise must be >= 0")
-        if self.stop_above_pitch is not None and not self.stop_above_pitch > 0:
-            raise InputError(f"stop_above_pitch must be > 0 radians, got {self.stop_above_pitch}")
+        for name in ("stop_above_pitch", "terminate_above_pitch"):
+            if getattr(self, name) is not None and not getattr(self, name) > 0:
+                raise InputError(f"{name} must be > 0 radians, got {getattr(self, name)}")
         if self.td3.behaviour_cloning:
             raise InputError("online TD3 has no behaviour data to clone: td3.behaviour_cloning must be False")
 

@@ -36,7 +36,7 @@ from xted.errors import InputError
 from xted.resume import resume_or_record
 from xted.rl.configs import OnlineRunConfig
 from xted.rl.run_folder import actor_checkpoint, read_evals, write_evals
-from xted.rl.evaluation import evaluate
+from xted.rl.evaluation import ROOT_PITCH, evaluate
 from xted.rl.policy_io import Actor, save_actor
 from xted.rl.sac import init_sac, sac_update
 from xted.rl.td3bc import init_td3bc, td3bc_update
@@ -142,6 +142,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
             else:
                 action = actor.act(obs[None], explore_rng)[0]
             next_obs, reward, terminated, truncated, _ = env.step(action)
+            terminated = terminated or _tipped_over(next_obs, config)
             for key, value in zip(BUFFER_FIELDS, (obs, action, reward, next_obs, terminated,
                                                   truncated and not terminated)):
                 rows[key][i] = value
@@ -194,6 +195,10 @@ def _initial_state(init_run: Path, state, config: OnlineRunConfig) -> tuple[Any,
     if jax.tree_util.tree_map(np.shape, loaded) != jax.tree_util.tree_map(np.shape, state):
         raise InputError(f"--init-from {init_run}: its networks have other shapes than this run's")
     return loaded, hashlib.sha256(raw).hexdigest()
+
+
+def _tipped_over(obs: np.ndarray, config: OnlineRunConfig) -> bool:
+    return config.terminate_above_pitch is not None and abs(float(obs[ROOT_PITCH])) > config.terminate_above_pitch
 
 
 def _should_stop(evals: list[dict], config: OnlineRunConfig) -> bool:
