@@ -132,13 +132,16 @@ def test_stop_above_pitch_ends_the_run_at_a_flipped_evaluation_and_a_larger_one_
 def test_terminate_above_pitch_ends_training_episodes_where_the_body_tips_and_is_part_of_the_run(tmp_path):
     domain = parse_domain("halfcheetah")
     base = dict(algo="td3", total_steps=300, start_steps=300, checkpoint_every=300, eval_episodes=1, td3=TINY_TD3)
-    threshold = 0.05
-    train_online(domain, tmp_path / "upright", OnlineRunConfig(terminate_above_pitch=threshold, **base), progress=False)
+    threshold, bonus = 0.05, 100.0  # a random cheetah's step rewards stay within a few units
+    train_online(domain, tmp_path / "upright", OnlineRunConfig(terminate_above_pitch=threshold, upright_bonus=bonus,
+                                                               **base), progress=False)
     train_online(domain, tmp_path / "plain", OnlineRunConfig(**base), progress=False)
     upright, plain = (np.load(tmp_path / name / "buffer.npz") for name in ("upright", "plain"))
     tipped = np.abs(upright["next_observations"][:, 1]) > threshold
     np.testing.assert_array_equal(upright["terminals"], tipped)
-    assert tipped.any() and not plain["terminals"].any()
+    assert tipped.any() and (~tipped).any() and not plain["terminals"].any()
+    np.testing.assert_array_equal(upright["rewards"] > bonus / 2, ~tipped)
+    assert np.abs(plain["rewards"]).max() < bonus / 2
     with pytest.raises(InputError, match="another run"):  # another training MDP: not the same run
         train_online(domain, tmp_path / "plain", OnlineRunConfig(terminate_above_pitch=threshold, **base),
                      progress=False)

@@ -39,8 +39,11 @@ def train(
         "drop a cheetah that has flipped onto its back (about 3; upright runs stay under 0.5)."),
     terminate_above_pitch: Optional[float] = typer.Option(
         OnlineRunConfig.terminate_above_pitch, "--terminate-above-pitch",
-        help="While training, end an episode (as a terminal) when |root pitch| exceeds this many radians, "
-        "so a halfcheetah learns to run upright; evaluations and datasets use the plain domain."),
+        help="While training, end an episode (as a terminal) when |root pitch| exceeds this many radians "
+        "and add --upright-bonus to the reward of every step before, so a halfcheetah learns to run upright; "
+        "evaluations and datasets use the plain domain and its rewards."),
+    upright_bonus: float = typer.Option(OnlineRunConfig.upright_bonus, "--upright-bonus", min=0.0,
+                                        help="Reward per upright training step with --terminate-above-pitch."),
     init_from: Optional[Path] = typer.Option(
         None, "--init-from", help="Start from the networks of this finished run (same algo): fine-tune a "
         "policy trained in another domain. It acts from the first step; updates begin after --start-steps."),
@@ -56,7 +59,7 @@ def train(
     config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
                              checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
                              stop_at_return=stop_at_return, stop_above_pitch=stop_above_pitch,
-                             terminate_above_pitch=terminate_above_pitch,
+                             terminate_above_pitch=terminate_above_pitch, upright_bonus=upright_bonus,
                              init_from=None if init_from is None else str(init_from))
     if force:
         discard_run(out, ("run.json",))

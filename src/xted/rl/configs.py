@@ -102,8 +102,11 @@ class OnlineRunConfig:
     # on its back (about 3) is a local optimum that further training does not leave.
     stop_above_pitch: float | None = None
     # Training only: end an episode (a terminal, as a fall ends a walker's) once |root pitch| exceeds
-    # this, so the policy learns to stay upright. Evaluations and the data made later run the plain domain.
+    # this, and add upright_bonus to every step's reward before it (Walker2d's healthy reward), so that
+    # ending early never pays and the policy learns to stay upright. Evaluations and the data made
+    # later run the plain domain with its own rewards.
     terminate_above_pitch: float | None = None
+    upright_bonus: float = 1.0
     init_from: str | None = None  # a finished run of the same algo whose networks this run starts from
     sac: SACConfig = SACConfig()
     td3: TD3BCConfig = TD3BCConfig(behaviour_cloning=False)
@@ -114,8 +117,8 @@ class OnlineRunConfig:
         for name in ("total_steps", "checkpoint_every", "eval_episodes", "block"):
             if getattr(self, name) <= 0:
                 raise InputError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.start_steps < 0 or self.exploration_noise < 0:
-            raise InputError("start_steps and exploration_noise must be >= 0")
+        if self.start_steps < 0 or self.exploration_noise < 0 or self.upright_bonus < 0:
+            raise InputError("start_steps, exploration_noise and upright_bonus must be >= 0")
         for name in ("stop_above_pitch", "terminate_above_pitch"):
             if getattr(self, name) is not None and not getattr(self, name) > 0:
                 raise InputError(f"{name} must be > 0 radians, got {getattr(self, name)}")
@@ -132,5 +135,7 @@ class OnlineRunConfig:
         fields.pop("total_steps")
         fields.pop("stop_at_return")
         fields.pop("stop_above_pitch")
+        if self.terminate_above_pitch is None:
+            fields.pop("upright_bonus")  # unused, and runs recorded before it existed stay the same runs
         fields.pop("sac" if self.algo == "td3" else "td3")
         return fields

@@ -142,7 +142,9 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
             else:
                 action = actor.act(obs[None], explore_rng)[0]
             next_obs, reward, terminated, truncated, _ = env.step(action)
-            terminated = terminated or _tipped_over(next_obs, config)
+            if config.terminate_above_pitch is not None:
+                terminated = terminated or abs(float(next_obs[ROOT_PITCH])) > config.terminate_above_pitch
+                reward += config.upright_bonus * (not terminated)
             for key, value in zip(BUFFER_FIELDS, (obs, action, reward, next_obs, terminated,
                                                   truncated and not terminated)):
                 rows[key][i] = value
@@ -195,10 +197,6 @@ def _initial_state(init_run: Path, state, config: OnlineRunConfig) -> tuple[Any,
     if jax.tree_util.tree_map(np.shape, loaded) != jax.tree_util.tree_map(np.shape, state):
         raise InputError(f"--init-from {init_run}: its networks have other shapes than this run's")
     return loaded, hashlib.sha256(raw).hexdigest()
-
-
-def _tipped_over(obs: np.ndarray, config: OnlineRunConfig) -> bool:
-    return config.terminate_above_pitch is not None and abs(float(obs[ROOT_PITCH])) > config.terminate_above_pitch
 
 
 def _should_stop(evals: list[dict], config: OnlineRunConfig) -> bool:
