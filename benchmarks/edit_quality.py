@@ -74,7 +74,7 @@ def main() -> None:
             row = {
                 "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit,
                 "edit_config": dataclasses.asdict(config), "prior": str(args.prior),
-                "target": args.target,
+                "target": args.target, "source_sha256": source.fingerprint(),
                 "sim_source": measured["simulator"]["source"]["mae"], "sim_edited": measured["simulator"]["edited"]["mae"],
                 "proxy_source": measured["proxy"]["source"], "proxy_edited": measured["proxy"]["edited"],
                 "proxy_resolution_source": resolution_sources[gap], "proxy_resolution_heldout": resolution_heldout,
