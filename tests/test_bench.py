@@ -160,6 +160,29 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     assert png.is_file()
 
 
+def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt",))
+    (cell_0, cell_1), = [row.cells for row in plan(config).rows]
+    store.write_result(config.store, cell_0, {"final_score": 3.0, "evals": [
+        {"step": 5, "normalized_score": 1.0}, {"step": 10, "normalized_score": 3.0}]})
+    store.write_result(config.store, cell_1, {"final_score": 5.0, "evals": [
+        {"step": 2, "normalized_score": 9.0}, {"step": 5, "normalized_score": 2.0},
+        {"step": 10, "normalized_score": 5.0}]})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt", "--seeds", "0,1", "--steps", "10",
+               "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200", "--store", config.store,
+               "--cache", config.cache, "--report"]
+    assert main(["bench", *options, "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert row["curve"] == [{"step": 5, "mean": 1.5, "std": 0.5, "n_seeds": 2},
+                            {"step": 10, "mean": 4.0, "std": 1.0, "n_seeds": 2}]  # step 2: one seed only
+    assert main(["bench", *options, "--curves"]) == 0
+    printed = capsys.readouterr().out
+    assert "| env | target | gap | column | algo | 5 | 10 |" in printed
+    assert "| halfcheetah | medium-replay | thigh | Tgt | iql | 1.5 ± 0.5 | 4.0 ± 1.0 |" in printed
+    assert main(["bench", *options[:-1], "--curves"]) == 2
+    assert "go with --report" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("option, value, message", [
     ("--columns", "Tgt,Tgt+Magic", "unknown column 'Tgt+Magic'"),
     ("--gaps", "thigh,moon", "unknown gap 'moon'"),

@@ -56,6 +56,8 @@ def bench(
     report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
     as_json: bool = typer.Option(False, "--json", help="With --report: print {\"rows\": [...]}."),
     png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
+    curves: bool = typer.Option(False, "--curves", help="With --report: also print each row's learning curve "
+                                "(mean ± std over seeds at every evaluation)."),
     executor: str = typer.Option("local", "--executor",
                                  help="local: one group of seeds after another here; ray: as Ray tasks."),
     address: Optional[str] = typer.Option(
@@ -78,8 +80,8 @@ def bench(
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
         overrides=tuple(overrides), priors=tuple(priors), transitions=transitions, store=str(store),
         cache=str(cache))
-    if (as_json or png is not None) and not report:
-        raise InputError("--json and --png go with --report")
+    if (as_json or png is not None or curves) and not report:
+        raise InputError("--json, --png and --curves go with --report")
     ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
                       gpus_per_task=gpus_per_task)
     if not report:
@@ -96,7 +98,7 @@ def bench(
         typer.echo(f"bench: {len(computed)} cells computed; results in {store}")
         return
     from xted.pipelines.bench.grid import plan
-    from xted.pipelines.bench.report import markdown, table_rows
+    from xted.pipelines.bench.report import curves_markdown, markdown, table_rows
 
     if png is not None:
         from xted.viz.plots import check_png_path
@@ -106,7 +108,10 @@ def bench(
     for message in grid.blocked:
         typer.echo(f"bench: {message}", err=True)
     rows = table_rows(grid)
-    typer.echo(json.dumps({"rows": rows}) if as_json else markdown(rows))
+    if as_json:
+        typer.echo(json.dumps({"rows": rows}))
+    else:
+        typer.echo(markdown(rows) + ("\n\n" + curves_markdown(rows) if curves else ""))
     if png is not None:
         from xted.viz.plots import save_png, table_figure
 

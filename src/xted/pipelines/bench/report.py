@@ -1,6 +1,6 @@
 """The table from stored results, nothing recomputed: one row per env x target x gap x column x
-algo (mean and std of the final normalised score over the seeds found), and its markdown with
-each mixed column's gain against Tgt as the paper prints it."""
+algo (mean and std of the final normalised score over the seeds found, and the learning curve of
+those seeds), and its markdown with each mixed column's gain against Tgt as the paper prints it."""
 
 from __future__ import annotations
 
@@ -20,10 +20,21 @@ def table_rows(grid: Grid) -> list[dict]:
     rows = []
     for row in grid.rows:
         results = [store.read_result(grid.config.store, cell) for cell in row.cells]
-        scores = [result["final_score"] for result in results if result is not None]
+        found = [result for result in results if result is not None]
         rows.append({"env": row.env, "target": row.target, "gap": row.gap, "column": row.column, "algo": row.algo,
-                     **score_summary(scores), "scores": scores})
+                     **score_summary([result["final_score"] for result in found]),
+                     "scores": [result["final_score"] for result in found], "curve": learning_curve(found)})
     return rows
+
+
+def learning_curve(results: Sequence[dict]) -> list[dict]:
+    """Mean and std over the seeds' results of the normalised score at every evaluation step that
+    all of them recorded."""
+    histories = [{e["step"]: e["normalized_score"] for e in result.get("evals", [])} for result in results]
+    if not histories:
+        return []
+    steps = sorted(set.intersection(*(set(history) for history in histories)))
+    return [{"step": step, **score_summary([history[step] for history in histories])} for step in steps]
 
 
 def task_rows(env: str, target: str, gap: str, columns: Sequence[str], store: str) -> list[dict]:
@@ -77,4 +88,17 @@ def markdown(rows: list[dict]) -> str:
                                                                           if c.startswith(TGT + "+") else "")
                  for c in columns]
         out.append("| Total | | | " + algo + " | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def curves_markdown(rows: list[dict]) -> str:
+    """One line per row: the mean ± std over seeds at each evaluation step (columns: the steps)."""
+    steps = sorted({point["step"] for row in rows for point in row["curve"]})
+    header = ["env", "target", "gap", "column", "algo", *(f"{step:,}" for step in steps)]
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row in rows:
+        points = {point["step"]: point for point in row["curve"]}
+        cells = [f"{points[step]['mean']:.1f} ± {points[step]['std']:.1f}" if step in points else MISSING
+                 for step in steps]
+        out.append("| " + " | ".join([row["env"], row["target"], row["gap"], row["column"], row["algo"], *cells]) + " |")
     return "\n".join(out)
