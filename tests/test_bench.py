@@ -118,6 +118,20 @@ def test_oracle_leaves_target_data_unchanged():
     np.testing.assert_array_equal(relabelled.actions, target.actions)
 
 
+def test_walker_oracle_is_exact_only_where_no_velocity_is_at_the_observation_clip():
+    """Walker2d observations clip joint velocities to +-10: where neither s nor s' is at the clip the
+    relabelled target data is the target data; where one is, s does not fix the simulator state."""
+    target = first_transitions(load("walker2d-medium-replay"), 500)
+    relabelled = cells.oracle("walker2d", target)
+    at_clip = lambda obs: np.any(np.abs(obs[:, 8:]) >= 10 - 1e-6, axis=1)  # noqa: E731
+    exact = ~at_clip(target.observations) & ~at_clip(target.next_observations)
+    state_error = np.abs(relabelled.next_observations - target.next_observations).max(axis=1)
+    assert 0.2 < exact.mean() < 0.9  # both kinds are in the sample
+    assert state_error[exact].max() < 1e-3
+    assert np.abs(relabelled.rewards - target.rewards)[exact].max() < 1e-4
+    assert np.median(state_error[~exact]) > 0.1
+
+
 def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
     """The shipped prior edits a 200-transition source (kappa 0.05: 10 reverse steps); IQL trains 10 steps."""
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited", "--seeds", "0,1",
