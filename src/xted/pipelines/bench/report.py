@@ -21,9 +21,9 @@ def table_rows(grid: Grid) -> list[dict]:
     for row in grid.rows:
         results = [store.read_result(grid.config.store, cell) for cell in row.cells]
         found = [result for result in results if result is not None]
+        scores = [result["final_score"] for result in found]
         rows.append({"env": row.env, "target": row.target, "gap": row.gap, "column": row.column, "algo": row.algo,
-                     **score_summary([result["final_score"] for result in found]),
-                     "scores": [result["final_score"] for result in found], "curve": learning_curve(found)})
+                     **score_summary(scores), "scores": scores, "curve": learning_curve(found)})
     return rows
 
 
