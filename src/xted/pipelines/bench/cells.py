@@ -27,7 +27,7 @@ def oracle(env: str, source: Dataset) -> Dataset:
     """The source's (s, a) with the target simulator's next state and reward: perfect editing.
 
     Exact only where the observation fixes the simulator state: a Walker2d observation with a
-    velocity at its clip (a third to a half of expert walker2d data) is relabelled from the clipped
+    velocity at its clip (37-54% of the shipped walker2d data) is relabelled from the clipped
     state, so its next state can be far from the true successor (BENCHMARKS.md, the lite table).
     Velocities are clipped as the target env's observations are (Walker2d). Terminals and timeouts
     are carried from the source, as an edit carries them; extras describe the source's simulator
