@@ -110,7 +110,7 @@ def test_oracle_leaves_target_data_unchanged():
     states within 1e-5 but for a few transitions where a contact amplifies the float32 rounding of
     the stored state (to 1e-4 at most)."""
     target = first_transitions(load("halfcheetah-medium-replay"), 300)
-    relabelled = cells.oracle("halfcheetah", target)
+    relabelled = cells.oracle("halfcheetah", "none", target)
     state_error = np.abs(relabelled.next_observations - target.next_observations).max(axis=1)
     reward_error = np.abs(relabelled.rewards - target.rewards)
     assert np.mean(state_error < 1e-5) >= 0.98 and state_error.max() < 1e-3
@@ -120,23 +120,28 @@ def test_oracle_leaves_target_data_unchanged():
     np.testing.assert_array_equal(relabelled.actions, target.actions)
 
 
-def test_walker_oracle_is_exact_only_where_no_velocity_is_at_the_observation_clip():
-    """Walker2d observations clip joint velocities to +-10: where neither s nor s' is at the clip the
-    relabelled target data is the target data; where one is, s does not fix the simulator state."""
+def test_walker_oracle_is_exact_where_velocities_are_at_the_observation_clip_too():
+    """Walker2d observations clip velocities to +-10, so such an s does not fix the simulator state;
+    the oracle recovers it by replaying the source's episode, and the relabelled target data is
+    the target data on both kinds of transition."""
     target = first_transitions(load("walker2d-medium-replay"), 500)
-    relabelled = cells.oracle("walker2d", target)
+    relabelled = cells.oracle("walker2d", "none", target)
     domain = parse_domain("walker2d")
     velocities, clip = slice(forward_velocity_index(domain), None), observation_velocity_clip(domain)
-
-    def at_clip(observations):
-        return np.any(np.abs(observations[:, velocities]) >= clip - 1e-6, axis=1)
-
-    exact = ~at_clip(target.observations) & ~at_clip(target.next_observations)
+    at_clip = np.any(np.abs(target.observations[:, velocities]) >= clip - 1e-6, axis=1)
     state_error = np.abs(relabelled.next_observations - target.next_observations).max(axis=1)
-    assert 0.2 < exact.mean() < 0.9  # both kinds are in the sample
-    assert state_error[exact].max() < 1e-3
-    assert np.abs(relabelled.rewards - target.rewards)[exact].max() < 1e-4
-    assert np.median(state_error[~exact]) > 0.1
+    assert 0.2 < at_clip.mean() < 0.9  # both kinds are in the sample
+    assert state_error[at_clip].max() < 1e-3 and state_error[~at_clip].max() < 1e-3
+    assert np.abs(relabelled.rewards - target.rewards).max() < 1e-4
+    assert relabelled.metadata["states_at_velocity_clip"] == {"observations": int(at_clip.sum()), "left_clipped": 0}
+
+
+def test_only_a_clipping_env_s_oracle_key_names_the_state_recovery(tmp_path):
+    """Recovery changes nothing where observations are not clipped, so halfcheetah oracle cells keep their keys."""
+    config = tiny_config(tmp_path, envs=("halfcheetah", "walker2d"), gaps=("thigh",), columns=("Tgt+Oracle",))
+    oracles = {cell.data_cell.env: cell.data_cell.inputs for cell in plan(config).learners.values()}
+    assert "states_at_velocity_clip" in oracles["walker2d"]
+    assert "states_at_velocity_clip" not in oracles["halfcheetah"]
 
 
 def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):

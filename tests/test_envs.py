@@ -2,9 +2,11 @@ import numpy as np
 import pytest
 
 import xted.envs as envs
-from xted.data import Dataset
-from xted.envs.dynamics import dynamics_error, reward_error
+from xted.data import Dataset, load
+from xted.envs.dynamics import dynamics_error, predict_next_observations, recovered_velocities, reward_error
+from xted.envs.make import forward_velocity_index
 from xted.errors import InputError
+from xted.pipelines.bench.grid import first_transitions
 
 
 def rollout(domain, steps=300, seed=0, with_rewards=False):
@@ -122,3 +124,23 @@ def test_source_rewards_differ_from_the_targets_where_the_morphology_does():
     data = as_dataset(obs, act, nxt, rewards)
     assert reward_error(source, data).mae < 1e-6
     assert reward_error(envs.parse_domain("halfcheetah"), data).mae > 1e-3
+
+
+def test_recovered_velocities_replay_a_recording_through_its_clipped_states():
+    """A walker2d recording stepped from its recovered states gives its next observations (clipped as
+    observed) on every transition; the same data read as another domain's recording is not
+    reproduced there, and its states at the clip stay clipped and are counted."""
+    data = first_transitions(load("walker2d-medium-replay"), 400)
+    domain = envs.parse_domain("walker2d")
+    recovered = recovered_velocities(domain, data)
+    velocities = slice(forward_velocity_index(domain), None)
+    assert recovered.at_clip > 50 and recovered.unrecovered == 0
+    assert np.abs(recovered.velocities).max() > 10.5  # beyond the clip
+    predicted = predict_next_observations(domain, data.observations, data.actions, recovered.velocities)
+    predicted[:, velocities] = np.clip(predicted[:, velocities], -10, 10)
+    assert np.abs(predicted - data.next_observations).max() < 1e-3
+
+    elsewhere = recovered_velocities(envs.parse_domain("walker2d", "gravity"), data)
+    assert elsewhere.at_clip == recovered.at_clip and elsewhere.unrecovered > recovered.at_clip // 2
+    observed = data.observations[:, velocities]
+    assert np.sum(np.any(elsewhere.velocities != observed, axis=1)) == elsewhere.at_clip - elsewhere.unrecovered

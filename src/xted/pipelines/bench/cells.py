@@ -11,7 +11,7 @@ from xted.data import Dataset
 from xted.diffusion.editor import edit_dataset
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
-from xted.envs.dynamics import predict_next_observations, replayed_rewards
+from xted.envs.dynamics import predict_next_observations, recovered_velocities, replayed_rewards
 from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.pipelines.bench.grid import DataCell, LearnerCell
 from xted.rl.offline_train import train_offline
@@ -23,29 +23,32 @@ def edited(cell: DataCell, source: Dataset) -> Dataset:
     return data
 
 
-def oracle(env: str, source: Dataset) -> Dataset:
+def oracle(env: str, gap: str, source: Dataset) -> Dataset:
     """The source's (s, a) with the target simulator's next state and reward: perfect editing.
 
-    Exact only where the observation fixes the simulator state: a Walker2d observation with a
-    velocity at its clip (37-54% of the shipped walker2d data) is relabelled from the clipped
-    state, so its next state can be far from the true successor (BENCHMARKS.md, the lite table).
-    Velocities are clipped as the target env's observations are (Walker2d). Terminals and timeouts
-    are carried from the source, as an edit carries them; extras describe the source's simulator
-    and are dropped."""
+    ``source`` is a recording of the ``gap`` domain's simulator. Where its observation has a velocity
+    at the clip (Walker2d-v5 clips to +-10: 37-54% of the shipped walker2d data), the state is
+    recovered by replaying the source's episode in its own domain (:func:`recovered_velocities`);
+    the metadata counts any left clipped. Next observations are clipped as the target env's are.
+    Terminals and timeouts are carried from the source, as an edit carries them; extras describe
+    the source's simulator and are dropped."""
     domain = parse_domain(env)
-    next_observations = predict_next_observations(domain, source.observations, source.actions)
+    recovered = recovered_velocities(parse_domain(env, gap), source)
+    next_observations = predict_next_observations(domain, source.observations, source.actions, recovered.velocities)
     clip = observation_velocity_clip(domain)
     velocities = slice(forward_velocity_index(domain), None)
     next_observations[:, velocities] = np.clip(next_observations[:, velocities], -clip, clip)
-    rewards = replayed_rewards(domain, source.observations, source.actions)
+    rewards = replayed_rewards(domain, source.observations, source.actions, recovered.velocities)
     return dataclasses.replace(
         source, next_observations=next_observations.astype(source.observations.dtype),
         rewards=rewards.astype(source.rewards.dtype), extras={},
-        metadata={**source.metadata, "relabelled": f"next states and rewards of the {env} simulator (oracle)"})
+        metadata={**source.metadata, "relabelled": f"next states and rewards of the {env} simulator (oracle)",
+                  "states_at_velocity_clip": {"observations": recovered.at_clip,
+                                              "left_clipped": recovered.unrecovered}})
 
 
 def make_data(cell: DataCell, source: Dataset) -> Dataset:
-    return edited(cell, source) if cell.kind == "edit" else oracle(cell.env, source)
+    return edited(cell, source) if cell.kind == "edit" else oracle(cell.env, cell.gap, source)
 
 
 def train_group(cells: Sequence[LearnerCell], training: Sequence[Dataset], progress: bool) -> list[dict]:

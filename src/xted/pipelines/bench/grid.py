@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,8 @@ from xted.config import apply_overrides
 from xted.data import Dataset, load, shipped
 from xted.diffusion.config import EditConfig
 from xted.diffusion.prior import read_prior_json
-from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env
+from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
+from xted.envs.make import observation_velocity_clip
 from xted.errors import InputError
 from xted.pipelines.bench.config import (
     DARA_BACKBONE,
@@ -206,6 +208,9 @@ def plan(config: BenchConfig) -> Grid:
                       "edit": dataclasses.asdict(edit)}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
+            if math.isfinite(observation_velocity_clip(parse_domain(env))):
+                # Only where observations clip does the recovery change the relabelling (and the key).
+                inputs["states_at_velocity_clip"] = "recovered by replaying the source"
         return DataCell(kind, env, gap, source, target, None if prior is None else str(prior),
                         edit if kind == "edit" else None, inputs, cell_key(inputs))
 
