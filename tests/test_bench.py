@@ -209,6 +209,39 @@ def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):
     assert "go with --report" in capsys.readouterr().err
 
 
+def edit_quality_row(gap, sim_source, sim_edited, proxy_source=1.0, proxy_edited=0.5, matched=0.9, mismatched=0.2):
+    return {"env": "halfcheetah", "gap": gap, "kappa": 0.5, "edit": [], "sim_source": sim_source,
+            "sim_edited": sim_edited, "proxy_source": proxy_source, "proxy_edited": proxy_edited,
+            "floor": {"sim": 0.4, "proxy": 0.4},
+            "content": {"matched": {"forward_velocity_correlation": matched},
+                        "mismatched": {"forward_velocity_correlation": mismatched}}}
+
+
+def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, capsys):
+    """A large gap halved and landing within 1.5x the floor meets every target; a small gap is not
+    held to halving; rows of gaps outside the grid are left out; a bad file exits 2."""
+    rows = tmp_path / "quality.jsonl"
+    rows.write_text("\n".join(json.dumps(row) for row in [
+        edit_quality_row("thigh", sim_source=1.2, sim_edited=0.6),
+        edit_quality_row("gravity", sim_source=0.2, sim_edited=0.7, proxy_edited=0.6, matched=0.5),
+        edit_quality_row("friction", sim_source=0.2, sim_edited=0.1)]) + "\n")
+    options = ["bench", "--envs", "halfcheetah", "--gaps", "thigh,gravity", "--columns", "Tgt", "--seeds", "0",
+               "--store", str(tmp_path / "store"), "--report"]
+    assert main([*options, "--json", "--edit-quality", str(rows)]) == 0
+    quality = json.loads(capsys.readouterr().out)["edit_quality"]
+    assert [(row["gap"], row["targets"]) for row in quality] == [
+        ("thigh", {"large gap halved": True, "lands at the floor": True, "proxy": True, "content kept": True}),
+        ("gravity", {"large gap halved": None, "lands at the floor": False, "proxy": False, "content kept": False})]
+    assert main([*options, "--edit-quality", str(rows)]) == 0
+    printed = capsys.readouterr().out
+    assert "| halfcheetah | gravity | 0.5 | default | 0.200 -> 0.700 (3.50) | 1.75 |" in printed
+    assert "met by 1 of 1 rows" in printed and "met by 1 of 2 rows" in printed
+    rows.write_text('{"env": "halfcheetah"}\n')
+    assert main([*options, "--edit-quality", str(rows)]) == 2
+    assert "quality.jsonl:1: not an edit-quality row (no gap, kappa" in capsys.readouterr().err
+    assert main([*options[:-1], "--edit-quality", str(rows)]) == 2
+
+
 @pytest.mark.parametrize("option, value, message", [
     ("--columns", "Tgt,Tgt+Magic", "unknown column 'Tgt+Magic'"),
     ("--gaps", "thigh,moon", "unknown gap 'moon'"),

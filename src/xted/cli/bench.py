@@ -56,6 +56,9 @@ def bench(
     report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
     as_json: bool = typer.Option(False, "--json", help="With --report: print {\"rows\": [...]}."),
     png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
+    edit_quality: List[Path] = typer.Option(
+        [], "--edit-quality", help="With --report: also the edit-quality table of these JSON-lines files "
+        "(benchmarks/edit_quality.py --out), rows of the grid's envs and gaps, checked against the edit targets."),
     curves: bool = typer.Option(False, "--curves", help="With --report: also print each row's learning curve "
                                 "(mean ± std over seeds at every evaluation)."),
     executor: str = typer.Option("local", "--executor",
@@ -80,8 +83,8 @@ def bench(
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
         overrides=tuple(overrides), priors=tuple(priors), transitions=transitions, store=str(store),
         cache=str(cache))
-    if (as_json or png is not None or curves) and not report:
-        raise InputError("--json, --png and --curves go with --report")
+    if (as_json or png is not None or curves or edit_quality) and not report:
+        raise InputError("--json, --png, --curves and --edit-quality go with --report")
     ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
                       gpus_per_task=gpus_per_task)
     if not report:
@@ -97,6 +100,9 @@ def bench(
             raise typer.Exit(1) from None
         typer.echo(f"bench: {len(computed)} cells computed; results in {store}")
         return
+    from xted.pipelines.bench.edit_quality import checked
+    from xted.pipelines.bench.edit_quality import markdown as edit_quality_markdown
+    from xted.pipelines.bench.edit_quality import read_rows as edit_quality_rows
     from xted.pipelines.bench.grid import plan
     from xted.pipelines.bench.report import curves_markdown, markdown, table_rows
 
@@ -108,10 +114,16 @@ def bench(
     for message in grid.blocked:
         typer.echo(f"bench: {message}", err=True)
     rows = table_rows(grid)
+    quality = [row for row in edit_quality_rows(edit_quality) if row["env"] in config.envs and row["gap"] in config.gaps]
+    if edit_quality and not quality:
+        raise InputError(f"--edit-quality: no rows of envs {_joined(config.envs)} and gaps {_joined(config.gaps)}")
     if as_json:
-        typer.echo(json.dumps({"rows": rows}))
+        typer.echo(json.dumps({"rows": rows, **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
+                                                if edit_quality else {})}))
     else:
-        typer.echo(markdown(rows) + ("\n\n" + curves_markdown(rows) if curves else ""))
+        sections = [markdown(rows), curves_markdown(rows) if curves else "",
+                    edit_quality_markdown(quality) if quality else ""]
+        typer.echo("\n\n".join(section for section in sections if section))
     if png is not None:
         from xted.viz.plots import save_png, table_figure
 
