@@ -156,6 +156,34 @@ def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
     assert [(row["column"], row["n_seeds"]) for row in rows] == [("Tgt", 2), ("Tgt+Edited", 2)]
 
 
+def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
+    """No prior is shipped for halfcheetah-medium: the bench trains one (3 steps here) into its cache,
+    records it, edits with it and trains the learner; a rerun computes nothing; more prior steps
+    make another prior, edit and learner."""
+    options = ["--envs", "halfcheetah", "--targets", "medium", "--gaps", "thigh", "--columns", "Tgt+Edited",
+               "--seeds", "0", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "2500",
+               "--kappa", "0.05", "--prior-steps", "3", "--store", str(tmp_path / "store"),
+               "--cache", str(tmp_path / "cache")]
+    config = tiny_config(tmp_path, targets=("medium",), gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,),
+                         transitions=2500, kappa=0.05, prior_steps=3)
+    (cell,) = plan(config).learners.values()
+    prior = cell.data_cell.prior_cell
+    assert prior is not None and cell.data_cell.inputs["prior"] == {"kind": "prior", "key": prior.key}
+    assert prior.heldout_episodes == 2 and prior.steps == 3 and cell.data_cell.prior == prior.folder
+    assert main(["bench", *options]) == 0
+    assert "3 cells computed" in capsys.readouterr().out  # the prior, the edit, the learner
+    record = store.read_result(config.store, prior)
+    assert record["steps"] == 3 and (tmp_path / "cache" / "halfcheetah" / prior.name / "prior.json").is_file()
+    assert store.read_result(config.store, cell) is not None
+    assert main(["bench", *options]) == 0
+    assert "0 cells computed" in capsys.readouterr().out
+    (longer,) = plan(dataclasses.replace(config, prior_steps=4)).learners.values()
+    assert longer.data_cell.prior_cell.key != prior.key and longer.data_cell.key != cell.data_cell.key
+    assert longer.key != cell.key
+    shipped_prior = plan(dataclasses.replace(config, targets=("medium-replay",)))
+    assert all(c.data_cell.prior_cell is None for c in shipped_prior.learners.values())
+
+
 def write_hand_made_results(config, scores):
     """Results of the grid's cells with the given final scores per column (one per seed)."""
     for row in plan(config).rows:
@@ -247,6 +275,7 @@ def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, caps
     ("--gaps", "thigh,moon", "unknown gap 'moon'"),
     ("--envs", "hopper", "unknown env 'hopper'"),
     ("--seeds", "0,0", "--seeds"),
+    ("--prior-preset", "huge", "unknown prior preset 'huge'"),
 ])
 def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
     assert main(["bench", option, value, "--store", str(tmp_path / "store"), "--report"]) == 2

@@ -118,3 +118,16 @@ def test_a_killed_worker_is_retried_and_cells_that_still_fail_are_reported(tmp_p
         oracle.data_cell.name: "RuntimeError: no oracle today",
         oracle.name: f"reads {oracle.data_cell.name}, which failed"}
     assert failure.value.computed == [tgt.name] and not (attempts / oracle.key).exists()
+
+
+def test_a_prior_the_bench_trains_is_trained_by_the_driver_before_its_edit_task(tmp_path, local_ray):
+    """halfcheetah-medium has no shipped prior: the driver trains it (2 steps) into its cache, and the
+    edit task on the worker reads that folder."""
+    config = BenchConfig(envs=("halfcheetah",), targets=("medium",), gaps=("thigh",), columns=("Tgt+Edited",),
+                         seeds=(0,), steps=10, eval_every=10, eval_episodes=1, transitions=2500, kappa=0.05,
+                         prior_steps=2, store=str(tmp_path / "store"), cache=str(tmp_path / "cache"))
+    (cell,) = plan(config).learners.values()
+    computed = run_bench(config, progress=False, echo=lambda message: None, ray=RayConfig())
+    assert computed[0] == cell.data_cell.prior_cell.name and set(computed[1:]) == {cell.data_cell.name, cell.name}
+    assert store.read_result(config.store, cell.data_cell.prior_cell)["steps"] == 2
+    assert store.read_result(config.store, cell)["edit_key"] == cell.data_cell.key

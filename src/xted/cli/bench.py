@@ -48,7 +48,12 @@ def bench(
     overrides: List[str] = typer.Option(
         [], "--set", help="Algorithm config override FIELD=VALUE, DARA's own as dara.FIELD=VALUE (repeatable)."),
     priors: List[str] = typer.Option(
-        [], "--prior", help="Prior folder per env: ENV=PATH or ENV-TARGET=PATH (default: the shipped one)."),
+        [], "--prior", help="Prior folder per env: ENV=PATH or ENV-TARGET=PATH (default: the shipped one, else one the "
+        "bench trains; --prior-steps, --prior-preset)."),
+    prior_steps: int = typer.Option(DEFAULTS.prior_steps, "--prior-steps", min=1,
+                                    help="Training steps of a prior the bench trains (a target with none shipped or given)."),
+    prior_preset: str = typer.Option(DEFAULTS.prior_preset, "--prior-preset",
+                                     help="Preset of a prior the bench trains: cpu or paper."),
     transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions", min=1,
                                               help="Use only the first N transitions of every dataset."),
     store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
@@ -81,7 +86,8 @@ def bench(
         envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
         columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
-        overrides=tuple(overrides), priors=tuple(priors), transitions=transitions, store=str(store),
+        overrides=tuple(overrides), priors=tuple(priors), prior_steps=prior_steps,
+        prior_preset=prior_preset, transitions=transitions, store=str(store),
         cache=str(cache))
     if (as_json or png is not None or curves or edit_quality) and not report:
         raise InputError("--json, --png, --curves and --edit-quality go with --report")
@@ -111,8 +117,6 @@ def bench(
 
         check_png_path(png)
     grid = plan(config)
-    for message in grid.blocked:
-        typer.echo(f"bench: {message}", err=True)
     rows = table_rows(grid)
     quality = [row for row in edit_quality_rows(edit_quality) if row["env"] in config.envs and row["gap"] in config.gaps]
     if edit_quality and not quality:

@@ -20,7 +20,7 @@ class BenchConfig:
     ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``overrides``: the algorithm
     config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
-    one); ``transitions``: use only the first N transitions of every dataset (a quick look at the
+    one, else one the bench trains: ``prior_steps`` of the ``prior_preset``); ``transitions``: use only the first N transitions of every dataset (a quick look at the
     protocol; None: all)."""
 
     envs: tuple[str, ...] = ("halfcheetah", "walker2d")
@@ -37,6 +37,8 @@ class BenchConfig:
     overrides: tuple[str, ...] = ()
     priors: tuple[str, ...] = ()
     transitions: int | None = None
+    prior_steps: int = 20_000
+    prior_preset: str = "cpu"
     store: str = "benchmarks/results/bench"
     cache: str = "runs/bench-cache"
 
@@ -50,7 +52,7 @@ class BenchConfig:
             raise InputError(f"bench: unknown column {unknown[0]!r}; known: {', '.join(COLUMNS)}")
         if any(seed < 0 for seed in self.seeds):
             raise InputError(f"bench: seeds must be non-negative, got {list(self.seeds)}")
-        for name in ("steps", "eval_every", "eval_episodes"):
+        for name in ("steps", "eval_every", "eval_episodes", "prior_steps"):
             if getattr(self, name) <= 0:
                 raise InputError(f"bench: {name} must be positive, got {getattr(self, name)}")
         if self.transitions is not None and self.transitions < 2:

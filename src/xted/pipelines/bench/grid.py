@@ -6,10 +6,12 @@ result is stored under that key, so a rerun skips a cell whose key it finds and 
 whose inputs changed; planning is cheap (shipped data is small), so the report plans too and
 reads exactly the current cells.
 
-Kinds of cell: an *edit* (a source edited with a prior) and an *oracle* (a source relabelled by
-the target simulator) make data; a *learner* trains one algorithm with one seed on target and/or
-source data. A learner that reads an edit or an oracle names that cell's key, not the data's
-fingerprint, so the key is known before the data is made.
+Kinds of cell: a *prior* (trained by the bench for a target with no prior shipped or given), an
+*edit* (a source edited with a prior) and an *oracle* (a source relabelled by the target
+simulator) make what learners read; a *learner* trains one algorithm with one seed on target
+and/or source data. A learner that reads an edit or an oracle, and an edit that reads a prior the
+bench trains, names that cell's key, not its output's fingerprint, so the key is known before
+the output is made.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ from typing import Any
 
 from xted.config import apply_overrides
 from xted.data import Dataset, load, shipped
-from xted.diffusion.config import EditConfig
+from xted.diffusion.config import EditConfig, PriorConfig
+from xted.diffusion.config import preset as prior_preset
+from xted.diffusion.config import presets as prior_presets
 from xted.diffusion.prior import read_prior_json
 from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
 from xted.envs.make import observation_velocity_clip
@@ -43,6 +47,10 @@ from xted.rl.configs import DARAConfig
 from xted.rl.offline_train import AlgoConfig, algorithm_name, default_config
 
 SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LEVEL-cpu
+# A prior the bench trains leaves out two target episodes (fewer where the data has fewer than three)
+# and starts from seed 0, as the shipped ones.
+PRIOR_HELDOUT_EPISODES = 2
+PRIOR_SEED = 0
 
 
 def cell_key(inputs: dict) -> str:
@@ -71,6 +79,27 @@ def first_transitions(data: Dataset, n: int | None) -> Dataset:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class PriorCell:
+    """A prior the bench trains itself (a target with no shipped prior and none passed), into
+    ``folder`` in the cache; its edits name its key."""
+
+    env: str
+    target: str  # target level
+    source: str  # the target dataset's name
+    config: PriorConfig
+    steps: int
+    heldout_episodes: int
+    folder: str
+    inputs: dict
+    key: str
+    kind: str = "prior"
+
+    @property
+    def name(self) -> str:
+        return f"prior-{self.target}-{self.key[:12]}"
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class DataCell:
     """An edit (``target`` is the prior's target level) or an oracle relabelling of one source."""
 
@@ -83,6 +112,7 @@ class DataCell:
     edit: EditConfig | None = None
     inputs: dict = dataclasses.field(default_factory=dict)
     key: str = ""
+    prior_cell: PriorCell | None = None  # where the bench trains the prior itself
 
     @property
     def name(self) -> str:
@@ -141,7 +171,6 @@ class Grid:
     datasets: dict[str, Dataset]
     rows: list[Row]
     learners: dict[str, LearnerCell]  # by key: a cell shared by several rows appears once
-    blocked: list[str]  # why some rows have no cells
 
 
 def check_names(config: BenchConfig) -> None:
@@ -157,6 +186,8 @@ def check_names(config: BenchConfig) -> None:
                 raise InputError(f"bench: no shipped dataset {name!r}; shipped: {', '.join(shipped.names())}")
     for algo in config.algos:
         default_config(algo)
+    if config.prior_preset not in prior_presets():
+        raise InputError(f"bench: unknown prior preset {config.prior_preset!r}; known: {', '.join(prior_presets())}")
     for key in config.prior_paths():
         if key.split("-", 1)[0] not in config.envs:
             raise InputError(f"--prior {key}=...: {key!r} is not ENV or ENV-TARGET of an env in the grid")
@@ -186,7 +217,8 @@ def resolve_prior(config: BenchConfig, env: str, target: str) -> Path | None:
 
 
 def plan(config: BenchConfig) -> Grid:
-    """Every cell of the grid with its key; loads the datasets (and hashes the priors), trains nothing."""
+    """Every cell of the grid with its key; loads the datasets (and hashes the given priors), trains nothing.
+    A target with no prior given or shipped gets a prior cell (``config.prior_steps`` of its preset)."""
     check_names(config)
     edit = edit_config(config)
     datasets: dict[str, Dataset] = {}
@@ -199,9 +231,26 @@ def plan(config: BenchConfig) -> Grid:
     def fingerprint(ref: str | DataCell) -> Any:
         return {"kind": ref.kind, "key": ref.key} if isinstance(ref, DataCell) else dataset(ref).fingerprint()
 
-    def data_cell(kind: str, env: str, gap: str, target: str | None = None, prior: Path | None = None) -> DataCell:
+    def prior_cell(env: str, target_level: str) -> PriorCell:
+        target = f"{env}-{target_level}"
+        data = dataset(target)
+        prior_config = prior_preset(config.prior_preset, data.observation_dim, data.action_dim, seed=PRIOR_SEED)
+        heldout = min(PRIOR_HELDOUT_EPISODES, data.num_episodes - 1)
+        inputs = {"kind": "prior", "target": fingerprint(target), "config": prior_config.to_dict(),
+                  "steps": config.prior_steps, "heldout_episodes": heldout}
+        key = cell_key(inputs)
+        folder = Path(config.cache) / env / f"prior-{target_level}-{key[:12]}"
+        return PriorCell(env, target_level, target, prior_config, config.prior_steps, heldout, str(folder), inputs, key)
+
+    def data_cell(kind: str, env: str, gap: str, target: str | None = None, prior: Path | PriorCell | None = None
+                  ) -> DataCell:
         source = f"{env}-{gap}"
-        if kind == "edit":
+        trained = prior if isinstance(prior, PriorCell) else None
+        if trained is not None:
+            prior = Path(trained.folder)
+            inputs = {"kind": kind, "source": fingerprint(source), "prior": {"kind": "prior", "key": trained.key},
+                      "edit": dataclasses.asdict(edit)}
+        elif kind == "edit":
             meta = read_prior_json(prior / "prior.json")
             check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
             inputs = {"kind": kind, "source": fingerprint(source), "prior": folder_fingerprint(prior),
@@ -212,18 +261,16 @@ def plan(config: BenchConfig) -> Grid:
                 # Only where observations clip does the recovery change the relabelling (and the key).
                 inputs["states_at_velocity_clip"] = "recovered by replaying the source"
         return DataCell(kind, env, gap, source, target, None if prior is None else str(prior),
-                        edit if kind == "edit" else None, inputs, cell_key(inputs))
+                        edit if kind == "edit" else None, inputs, cell_key(inputs), trained)
 
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
-    blocked: list[str] = []
     for env in config.envs:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
-            prior = resolve_prior(config, env, target_level) if TGT_EDITED in config.columns else None
-            if TGT_EDITED in config.columns and prior is None:
-                blocked.append(f"{target}: no prior (none shipped as {target}{SHIPPED_PRIOR_SUFFIX}; pass --prior "
-                               f"{env}=PATH), so its {TGT_EDITED} cells are left out")
+            prior: Path | PriorCell | None = None
+            if TGT_EDITED in config.columns:
+                prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
             for gap in config.gaps:
                 source = f"{env}-{gap}"
                 trainings: dict[str, tuple[str | DataCell, ...] | None] = {
@@ -251,5 +298,5 @@ def plan(config: BenchConfig) -> Grid:
                                 column, algo, seed, algo_config, training, inputs, key))
                             cells.append(cell)
                         rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))
-    return Grid(config, datasets, rows, learners, blocked)
+    return Grid(config, datasets, rows, learners)
 

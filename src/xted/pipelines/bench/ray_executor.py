@@ -8,7 +8,9 @@ data exists, wherever it was made. Tasks return their results and only the drive
 and the cache, one result at a time and each atomically: a cluster needs no shared file system,
 two tasks finishing together never write at once, and a dying worker leaves nothing half-written.
 A task whose worker dies is run again up to ``RayConfig.retries`` times; a cell that still fails
-is reported by name (``CellsFailed``) after every other result is stored.
+is reported by name (``CellsFailed``) after every other result is stored. A prior the bench
+trains (a target with none shipped or given) is trained by the driver, into its cache, before its
+edit tasks start: on a multi-node cluster that cache must be on a path every node reads.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from xted.pipelines.bench.run import (
     group_records,
     keep_data,
     make_data,
+    prior_of,
     store_records,
 )
 
@@ -46,10 +49,18 @@ def import_ray():
 
 def _make(cell: DataCell, source: Dataset, make: Callable) -> tuple[Dataset, float]:
     """Task body of a data cell (on a worker)."""
-    if cell.kind == "edit" and folder_fingerprint(Path(cell.prior)) != cell.inputs["prior"]:
+    if cell.kind == "edit" and not _prior_here(cell):
         raise InputError(f"the prior folder {cell.prior} on this worker differs from the driver's (or is "
                          "missing): install the same xted on every node, or put --prior folders on a shared path")
     return make_data(cell, source, make)
+
+
+def _prior_here(cell: DataCell) -> bool:
+    """The edit's prior folder on this worker is the driver's: the one it trained (into its cache), or the given one."""
+    folder = Path(cell.prior)
+    if cell.prior_cell is not None:
+        return (folder / "prior.json").is_file()
+    return folder_fingerprint(folder) == cell.inputs["prior"]
 
 
 def _train(group: Sequence[LearnerCell], work: Work, *training: Dataset) -> list[dict]:
@@ -115,11 +126,14 @@ def _run(ray, grid: Grid, groups: list[list[LearnerCell]], settings: RayConfig, 
 
     inputs: dict[str, object] = {}  # data cell key -> object ref of its data
     waiting: dict[object, tuple] = {}  # object ref -> ("data", cell, seconds ref) or ("group", cells)
+    computed: list[str] = []
     for cell in data_needed(groups):
         data = cached_data(grid, cell)
         if data is not None:
             inputs[cell.key] = ray.put(data)
             continue
+        if cell.prior_cell is not None and prior_of(grid, cell.prior_cell, progress):  # here, before its edits
+            computed.append(cell.prior_cell.name)
         remote_cell = cell if cell.prior is None else dataclasses.replace(cell, prior=str(Path(cell.prior).resolve()))
         data_ref, seconds_ref = make.options(name=cell.name, num_gpus=gpus if cell.kind == "edit" else 0).remote(
             remote_cell, put(cell.source), work.make_data)
@@ -129,7 +143,6 @@ def _run(ray, grid: Grid, groups: list[list[LearnerCell]], settings: RayConfig, 
         training = [inputs[ref.key] if isinstance(ref, DataCell) else put(ref) for ref in group[0].training]
         waiting[train.options(name=group_label(group)).remote(group, work, *training)] = ("group", group)
 
-    computed: list[str] = []
     failures: list[tuple[DataCell | list[LearnerCell], str]] = []
     bar = tqdm(total=len(grid.learners), initial=len(grid.learners) - sum(map(len, groups)), desc="bench cells",
                unit="cell", disable=not progress, smoothing=0.0)

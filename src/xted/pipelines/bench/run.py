@@ -12,13 +12,15 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from xted.data import Dataset, load, save
+from xted.data import Dataset, load, save, split_heldout
+from xted.diffusion.training import train_prior
 from xted.pipelines.bench import cells, store
 from xted.pipelines.bench.config import BenchConfig, RayConfig
-from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, plan
+from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, PriorCell, plan
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,14 +89,31 @@ def keep_data(config: BenchConfig, cell: DataCell, data: Dataset, seconds: float
         "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds})
 
 
-def data_of(grid: Grid, cell: DataCell, work: Work = Work()) -> tuple[Dataset, bool]:
-    """The cell's data from the cache, else made now (cached, recorded); and whether it was made."""
+def prior_of(grid: Grid, cell: PriorCell, progress: bool = False) -> bool:
+    """Train the prior cell's prior into its folder (resuming one cut short) unless the store records
+    it finished and the folder is there; whether it trained now."""
+    folder = Path(cell.folder)
+    if store.read_result(grid.config.store, cell) is not None and (folder / "prior.json").is_file():
+        return False
+    training, _ = split_heldout(grid.datasets[cell.source], cell.heldout_episodes)
+    began = time.perf_counter()
+    train_prior(training, folder, cell.config, cell.steps, progress=progress)
+    store.write_result(grid.config.store, cell, {
+        "kind": cell.kind, "env": cell.env, "target": cell.target, "steps": cell.steps,
+        "folder": cell.folder, "seconds": time.perf_counter() - began})
+    return True
+
+
+def data_of(grid: Grid, cell: DataCell, work: Work = Work(), progress: bool = False) -> tuple[Dataset, list[str]]:
+    """The cell's data from the cache, else made now (cached, recorded, after its prior where the
+    bench trains that); and the names of the cells computed for it."""
     data = cached_data(grid, cell)
     if data is not None:
-        return data, False
+        return data, []
+    computed = [cell.prior_cell.name] if cell.prior_cell is not None and prior_of(grid, cell.prior_cell, progress) else []
     data, seconds = make_data(cell, grid.datasets[cell.source], work.make_data)
     keep_data(grid.config, cell, data, seconds)
-    return data, True
+    return data, [*computed, cell.name]
 
 
 def group_records(group: Sequence[LearnerCell], training: Sequence[Dataset], work: Work,
@@ -140,8 +159,8 @@ def run_local(grid: Grid, groups: list[list[LearnerCell]], progress: bool, work:
         for ref in group[0].training:
             if isinstance(ref, DataCell):
                 if ref.key not in made:
-                    made[ref.key], fresh = data_of(grid, ref, work)
-                    computed += [ref.name] if fresh else []
+                    made[ref.key], fresh = data_of(grid, ref, work, progress)
+                    computed += fresh
                 training.append(made[ref.key])
             else:
                 training.append(grid.datasets[ref])
@@ -161,8 +180,6 @@ def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], 
 
         ray_executor.import_ray()  # refuse a missing Ray before planning
     grid = plan(config)
-    for message in grid.blocked:
-        echo(f"bench: {message}")
     groups = pending(grid)
     todo = sum(len(group) for group in groups)
     where = "" if ray is None else " as Ray tasks (a task is a group of seeds, as locally)"
