@@ -238,23 +238,21 @@ def plan(config: BenchConfig) -> Grid:
         heldout = min(PRIOR_HELDOUT_EPISODES, data.num_episodes - 1)
         inputs = {"kind": "prior", "target": fingerprint(target), "config": prior_config.to_dict(),
                   "steps": config.prior_steps, "heldout_episodes": heldout}
-        key = cell_key(inputs)
-        folder = Path(config.cache) / env / f"prior-{target_level}-{key[:12]}"
-        return PriorCell(env, target_level, target, prior_config, config.prior_steps, heldout, str(folder), inputs, key)
+        cell = PriorCell(env, target_level, target, prior_config, config.prior_steps, heldout, "", inputs, cell_key(inputs))
+        return dataclasses.replace(cell, folder=str(Path(config.cache) / env / cell.name))
 
     def data_cell(kind: str, env: str, gap: str, target: str | None = None, prior: Path | PriorCell | None = None
                   ) -> DataCell:
         source = f"{env}-{gap}"
         trained = prior if isinstance(prior, PriorCell) else None
-        if trained is not None:
-            prior = Path(trained.folder)
-            inputs = {"kind": kind, "source": fingerprint(source), "prior": {"kind": "prior", "key": trained.key},
-                      "edit": dataclasses.asdict(edit)}
-        elif kind == "edit":
-            meta = read_prior_json(prior / "prior.json")
-            check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
-            inputs = {"kind": kind, "source": fingerprint(source), "prior": folder_fingerprint(prior),
-                      "edit": dataclasses.asdict(edit)}
+        if kind == "edit":
+            if trained is not None:
+                prior, identity = Path(trained.folder), {"kind": "prior", "key": trained.key}
+            else:
+                meta = read_prior_json(prior / "prior.json")
+                check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
+                identity = folder_fingerprint(prior)
+            inputs = {"kind": kind, "source": fingerprint(source), "prior": identity, "edit": dataclasses.asdict(edit)}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
             if math.isfinite(observation_velocity_clip(parse_domain(env))):
