@@ -1,14 +1,17 @@
 """Per-gap editing quality of a trained prior: simulator truth, the paper's learned proxy, task content.
 
     python benchmarks/edit_quality.py --env halfcheetah --prior PRIOR --target halfcheetah-medium-replay \
-        [--heldout-episodes 2] [--gaps gravity friction thigh] [--kappa 0.5] [--edit FIELD=VALUE ...]
-        [--out runs/edit_quality.jsonl]
+        [--heldout-episodes 2] [--gaps gravity friction thigh] [--kappa 0.5] [--temperature T ...]
+        [--floor-seeds 3] [--edit FIELD=VALUE ...] [--out runs/edit_quality.jsonl]
 
 The prior must have been trained with the same ``--heldout-episodes`` (the split is deterministic):
-those target episodes measure the floor (the same edit applied to target data the prior never saw).
+those target episodes measure the floor (the same edit applied to target data the prior never saw),
+with ``--floor-seeds`` edit seeds (mean, spread and transition count reported: the held-out
+episodes are few, walker2d's about 300 transitions).
 A dynamics proxy (MLP) is fitted to the prior's training episodes. Reported per gap and kappa:
 
-- simulator MAE (every transition replayed in the target simulator) of the source and its edit;
+- simulator MAE (every transition replayed in the target simulator) of the source and its edit,
+  with the share of edited transitions reaching beyond walker2d's velocity clip (counted as errors);
 - proxy MAE, ``|proxy(s, a) - s'|`` (the paper's measure) of the source and its edit;
 - task content kept (``xted.analysis.content``): low-pass and low-frequency magnitude differences
   and forward-velocity correlation, matched pairs and mismatched pairs (chance level);
@@ -20,8 +23,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import json
 from pathlib import Path
+
+import numpy as np
 
 from xted.analysis import ProxyConfig, edit_report, fit_proxy
 from xted.config import apply_overrides
@@ -40,6 +46,9 @@ def main() -> None:
     parser.add_argument("--heldout-episodes", type=int, default=2)
     parser.add_argument("--gaps", nargs="+", default=["gravity", "friction", "thigh"])
     parser.add_argument("--kappa", nargs="+", type=float, default=[0.5])
+    parser.add_argument("--temperature", nargs="+", type=float, default=None,
+                        help="Reverse-chain noise temperatures to sweep (default: EditConfig's, or --edit's).")
+    parser.add_argument("--floor-seeds", type=int, default=3, help="Edit seeds the floor is averaged over.")
     parser.add_argument("--edit", nargs="*", default=[],
                         help="EditConfig overrides (e.g. iterations=2 target_return=0.5), for every kappa.")
     parser.add_argument("--seed", type=int, default=0)
@@ -58,15 +67,21 @@ def main() -> None:
     print(f"proxy's own simulator MAE on held-out target states: {resolution_heldout:.3f}")
     print("| gap | kappa | sim MAE source -> edited (ratio) | proxy MAE source -> edited (ratio) | proxy's sim MAE on source states "
           "| low-pass diff matched / mismatched | low-freq magnitude diff matched / mismatched "
-          "| fwd-velocity corr matched / mismatched | floor sim / proxy |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| fwd-velocity corr matched / mismatched | floor sim (seeds) / proxy | edited beyond clip | edit time |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
     resolution_sources = {gap: proxy_resolution(d) for gap, d in sources.items()}
-    for kappa in args.kappa:
-        config = dataclasses.replace(apply_overrides(EditConfig(), args.edit), kappa=kappa, seed=args.seed)
-        floor, _ = edit_dataset(prior, heldout, config)
-        floor_report = edit_report(domain, heldout, floor, proxy)
-        floor_row = {"sim": floor_report["simulator"]["edited"]["mae"], "proxy": floor_report["proxy"]["edited"]}
+    base = apply_overrides(EditConfig(), args.edit)
+    for kappa, temperature in itertools.product(args.kappa, args.temperature or [base.temperature]):
+        config = dataclasses.replace(base, kappa=kappa, temperature=temperature, seed=args.seed)
+        floors = []
+        for seed in range(args.seed, args.seed + args.floor_seeds):
+            floor, _ = edit_dataset(prior, heldout, dataclasses.replace(config, seed=seed))
+            floors.append(edit_report(domain, heldout, floor, proxy))
+        sims = [f["simulator"]["edited"]["mae"] for f in floors]
+        floor_row = {"sim": float(np.mean(sims)), "sim_std": float(np.std(sims)), "sim_seeds": sims,
+                     "n": floors[0]["simulator"]["edited"]["n"],
+                     "proxy": float(np.mean([f["proxy"]["edited"] for f in floors]))}
         for gap, source in sources.items():
             edited, report = edit_dataset(prior, source, config)
             measured = edit_report(domain, source, edited, proxy)
@@ -76,18 +91,20 @@ def main() -> None:
                 "edit_config": dataclasses.asdict(config), "prior": str(args.prior),
                 "target": args.target, "source_sha256": source.fingerprint(),
                 "sim_source": measured["simulator"]["source"]["mae"], "sim_edited": measured["simulator"]["edited"]["mae"],
+                "sim_edited_beyond_clip": measured["simulator"]["edited"]["beyond_clip"] / measured["simulator"]["edited"]["n"],
                 "proxy_source": measured["proxy"]["source"], "proxy_edited": measured["proxy"]["edited"],
                 "proxy_resolution_source": resolution_sources[gap], "proxy_resolution_heldout": resolution_heldout,
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
             }
             m, mm = content["matched"], content["mismatched"]
-            print(f"| {gap} | {kappa} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} ({row['sim_edited'] / row['sim_source']:.2f}) "
+            print(f"| {gap} | {kappa} T={temperature} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} ({row['sim_edited'] / row['sim_source']:.2f}) "
                   f"| {row['proxy_source']:.3f} -> {row['proxy_edited']:.3f} ({row['proxy_edited'] / row['proxy_source']:.2f}) "
                   f"| {row['proxy_resolution_source']:.3f} "
                   f"| {m['low_pass_difference']:.2f} / {mm['low_pass_difference']:.2f} "
                   f"| {m['low_freq_magnitude_difference']:.2f} / {mm['low_freq_magnitude_difference']:.2f} "
                   f"| {m['forward_velocity_correlation']:.2f} / {mm['forward_velocity_correlation']:.2f} "
-                  f"| {floor_row['sim']:.3f} / {floor_row['proxy']:.3f} |", flush=True)
+                  f"| {floor_row['sim']:.3f} ± {floor_row['sim_std']:.3f} (n={floor_row['n']}) / {floor_row['proxy']:.3f} "
+                  f"| {row['sim_edited_beyond_clip']:.1%} | {report['seconds']:.0f} s |", flush=True)
             if args.out:
                 with args.out.open("a") as f:
                     f.write(json.dumps(row) + "\n")

@@ -31,7 +31,7 @@ from xted.diffusion import (
 )
 from xted.diffusion.config import LOSS_WEIGHTINGS
 from xted.diffusion.objective import LOSS_WEIGHTS
-from xted.diffusion.objective import init_train_state
+from xted.diffusion.objective import init_train_state, loss_fn
 from xted.errors import InputError
 
 TINY = PriorConfig(
@@ -82,6 +82,22 @@ def test_schedule_sanity():
     np.testing.assert_array_equal(ddpm_step(s, x0, zero, noise, noise), ddpm_step(s, x0, zero, noise, 5 * noise))
     clipped = ddpm_step(s, x_t, t, -noise * 50, jnp.zeros_like(x0), clip=1.0)
     assert np.all(np.isfinite(clipped))
+
+
+def test_temperature_scales_the_noise_a_step_adds_and_ddim_at_eta_one_is_ddpm():
+    s = cosine_schedule(200)
+    x_t = jax.random.normal(jax.random.key(1), (2, 3, 2))
+    eps = jax.random.normal(jax.random.key(2), x_t.shape)
+    noise = jax.random.normal(jax.random.key(3), x_t.shape)
+    t = jnp.array([80, 80])
+    mean = ddpm_step(s, x_t, t, eps, jnp.zeros_like(noise))
+    for temperature in (0.0, 0.5, 1.0):
+        np.testing.assert_allclose(ddpm_step(s, x_t, t, eps, noise, temperature=temperature) - mean,
+                                   temperature * (ddpm_step(s, x_t, t, eps, noise) - mean), atol=1e-5)
+        # One DDIM step of eta = 1 between consecutive timesteps is the DDPM posterior (Song et al. 2021, Eq. 16).
+        np.testing.assert_allclose(ddim_step(s, x_t, t, t - 1, eps, eta=1.0, noise=noise, temperature=temperature),
+                                   ddpm_step(s, x_t, t, eps, noise, temperature=temperature), atol=1e-5)
+    np.testing.assert_allclose(ddim_step(s, x_t, t, t - 1, eps, eta=0.0, noise=noise), ddim_step(s, x_t, t, t - 1, eps))
 
 
 def test_ddim_timesteps():
@@ -203,6 +219,24 @@ def test_loss_weights():
     np.testing.assert_allclose(LOSS_WEIGHTS["uniform"](snr), 1.0)
     np.testing.assert_allclose(LOSS_WEIGHTS["min_snr"](snr), [1.0, 1.0, 0.25])
     assert tuple(LOSS_WEIGHTS) == LOSS_WEIGHTINGS  # the names the config accepts are the weightings there are
+
+
+def test_train_kappa_max_draws_only_the_low_noise_levels():
+    """Zero-initialised decoders predict no noise, so each sample's loss is its Min-SNR weight times
+    the noise's square: the lowest level's weight alone, or the mean weight over every level."""
+    batch = _sine_batch(256, TINY.horizon, seed=0)
+    losses = {}
+    for kappa_max in (0.1, 1.0):  # K = 10: noise step 0 only, or all ten
+        config = dataclasses.replace(TINY, loss_weighting="min_snr", train_kappa_max=kappa_max)
+        params = init_train_state(config, jax.random.key(0)).params
+        losses[kappa_max] = float(loss_fn(params, batch, jax.random.key(1), model=Denoiser(config.denoiser),
+                                          schedule=cosine_schedule(config.num_timesteps), config=config)[0])
+    abar = np.asarray(cosine_schedule(TINY.num_timesteps).alphas_cumprod)
+    weights = np.minimum(abar / (1 - abar), 5.0) / (abar / (1 - abar))
+    assert losses[0.1] == pytest.approx(weights[0], rel=0.05)
+    assert losses[1.0] == pytest.approx(weights.mean(), rel=0.15) and weights.mean() > 2 * weights[0]
+    with pytest.raises(InputError, match="train_kappa_max"):
+        dataclasses.replace(TINY, train_kappa_max=0.01)
 
 
 def _sine_batch(b: int, h: int, seed: int) -> dict[str, np.ndarray]:

@@ -88,6 +88,13 @@ def test_reverse_chain_starts_at_k(prior):
     assert _plan(prior, EditConfig(kappa=0.5, sampler="ddim", sampler_steps=3)).timesteps == (4, 2, 0)
 
 
+def test_a_prior_trained_on_low_noise_levels_refuses_larger_kappas():
+    low = random_prior(dataclasses.replace(TINY, train_kappa_max=0.5))
+    assert _plan(low, EditConfig(kappa=0.5)).timesteps == (4, 3, 2, 1, 0)
+    with pytest.raises(InputError, match="train_kappa_max=0.5"):
+        _plan(low, EditConfig(kappa=0.6))
+
+
 def test_kappa_zero_windows_identity(prior):
     s, a, r = _windows()
     out = edit_windows(prior, s, a, r, EditConfig(kappa=0.0), jax.random.key(0))
@@ -119,16 +126,25 @@ def test_edit_dataset_transitions(source, edited):
             for name in ("observations", "actions", "rewards", "next_observations"):
                 np.testing.assert_array_equal(getattr(result, name)[steps], getattr(source, name)[steps])
             continue
-        regular = (length + 1 - H) // (H - 1) + 1
-        for t in range(length):
-            if t % (H - 1) == 0 and t // (H - 1) < regular:  # held first transition of a window
-                np.testing.assert_array_equal(result.observations[start + t], source.observations[start + t])
-                np.testing.assert_array_equal(result.actions[start + t], source.actions[start + t])
-                np.testing.assert_array_equal(result.rewards[start + t], source.rewards[start + t])
-            if t + 1 < length and (t + 1) % (H - 1) != 0 and (t + 1) // (H - 1) < regular:  # same window
-                np.testing.assert_array_equal(result.next_observations[start + t], result.observations[start + t + 1])
-        interior = steps[np.arange(length) % (H - 1) != 0]
-        assert not np.allclose(result.observations[interior], source.observations[interior])
+        for name in ("observations", "actions", "rewards"):  # only the episode's first transition is held
+            np.testing.assert_array_equal(getattr(result, name)[start], getattr(source, name)[start])
+        later = steps[1:]
+        assert not np.isclose(result.observations[later], source.observations[later]).all(axis=1).any()
+        assert not np.isclose(result.actions[later], source.actions[later]).all(axis=1).any()
+
+
+def test_edited_episodes_are_stitched(source, edited):
+    """Every edited next state is the next edited state, across window boundaries too."""
+    result, _ = edited
+    for start, end in result.episode_bounds():
+        np.testing.assert_array_equal(result.next_observations[start:end - 1], result.observations[start + 1:end])
+    assert not np.allclose(result.next_observations[-1], source.next_observations[-1])  # the final state is edited
+
+
+def test_edit_does_not_depend_on_how_windows_are_batched(prior, source, edited):
+    one_at_a_time, _ = edit_dataset(prior, source, EditConfig(batch_size=1, seed=0))
+    for name in ("observations", "actions", "rewards", "next_observations"):
+        np.testing.assert_allclose(getattr(one_at_a_time, name), getattr(edited[0], name), atol=1e-5, err_msg=name)
 
 
 def test_edit_dataset_deterministic(prior, source, edited):

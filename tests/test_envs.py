@@ -101,6 +101,22 @@ def test_velocity_clip_transitions_are_excluded():
     assert result.n + result.excluded_clipped == len(obs)
 
 
+def test_states_beyond_the_velocity_clip_count_as_errors_against_the_clipped_prediction():
+    domain = envs.parse_domain("walker2d")
+    obs, act, nxt = rollout(domain, steps=50)
+    exact = dynamics_error(domain, obs, act, nxt)
+    assert exact.beyond_clip == 0 and exact.mae < 1e-6
+    fixed = ~np.any(np.isclose(np.abs(obs[:, 8:]), 10.0), axis=1)  # qvel starts at nq - 1 = 8
+    i = int(np.flatnonzero(fixed & (np.abs(nxt[:, -1]) < 9))[0])
+    edited = nxt.copy()
+    edited[i, -1] = 13.0  # no observation can hold this: the env would show at most 10
+    result = dynamics_error(domain, obs, act, edited)
+    assert (result.n, result.excluded_clipped) == (exact.n, exact.excluded_clipped) and result.beyond_clip == 1
+    row = int(fixed[:i].sum())
+    assert result.mae_per_transition[row] == pytest.approx(abs(13.0 - nxt[i, -1]) / obs.shape[1], rel=1e-5)
+    assert result.summary()["beyond_clip"] == 1
+
+
 def test_dimension_mismatch_is_refused():
     domain = envs.parse_domain("halfcheetah")
     with pytest.raises(InputError, match="dims"):

@@ -84,3 +84,26 @@ def test_tiling_puts_every_transition_inside_one_window(make_dataset, horizon):
     following = np.where(tiling.sequence_is_next[next_rows], tiling.sequence_steps[next_rows],
                          tiling.sequence_steps[next_rows] - 1)
     np.testing.assert_array_equal(following, tiling.transition_steps)
+
+
+@pytest.mark.parametrize("slots", [1, 2, 5])
+def test_stitching_schedule_edits_each_window_after_the_one_it_starts_from(make_dataset, slots):
+    dataset = make_dataset(lengths=(1, 4, 7, 9, 30))
+    tiling = tile_episodes(dataset.episode_bounds(), 4)
+    table = tiling.schedule(slots)
+    ids = table[table >= 0]
+    np.testing.assert_array_equal(np.sort(ids), np.arange(len(tiling.window_rows)))  # each window once
+    step_of = np.empty(len(tiling.window_rows), np.int64)
+    step_of[table[table >= 0]] = np.nonzero(table >= 0)[0]
+    previous = tiling.window_previous
+    assert (step_of[previous >= 0] > step_of[previous[previous >= 0]]).all()
+    assert len(table) <= -(-len(ids) // slots) + 10  # the longest episode (10 windows) bounds the imbalance
+    # A window's first state is the previous window's carried position, and transitions between them.
+    rows = tiling.window_rows
+    np.testing.assert_array_equal(rows[previous >= 0, 0],
+                                  rows[previous[previous >= 0], tiling.window_carry_position[previous >= 0]])
+    w, p = tiling.transition_window, tiling.transition_position
+    nxt = previous >= 0
+    last = {int(previous[i]): tiling.window_carry_position[i] for i in np.flatnonzero(nxt)}
+    for window, position in zip(w, p):
+        assert position < last.get(int(window), tiling.window_rows.shape[1] - 1)

@@ -61,6 +61,10 @@ def edit(
     sampler: str = typer.Option(EditConfig.sampler, "--sampler", help="ddpm or ddim."),
     sampler_steps: Optional[int] = typer.Option(EditConfig.sampler_steps, "--sampler-steps", min=1,
                                                 help="DDIM steps (default k)."),
+    temperature: float = typer.Option(EditConfig.temperature, "--temperature", min=0.0,
+                                      help="Scale of the noise each reverse step adds (0: none; 1: the model's own)."),
+    eta: float = typer.Option(EditConfig.eta, "--eta", min=0.0, max=1.0,
+                              help="DDIM only: share of the DDPM posterior's noise its steps add (0: deterministic)."),
     seed: int = typer.Option(0, "--seed", min=0),
     relabel_rewards_from: Optional[str] = typer.Option(
         None, "--relabel-rewards",
@@ -82,7 +86,8 @@ def edit(
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
                                               "--prior": prior})
     config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, hold_actions=hold_actions,
-                        guidance=guidance, sampler=sampler, sampler_steps=sampler_steps, seed=seed)
+                        guidance=guidance, sampler=sampler, sampler_steps=sampler_steps, temperature=temperature,
+                        eta=eta, seed=seed)
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
     if reward_data is not None and (reward_data.observation_dim, reward_data.action_dim) != (
@@ -94,7 +99,7 @@ def edit(
     for role, name, data in (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data)):
         if data is not None:
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
-    edited, report = edit_dataset(prior_model, source_data, config)
+    edited, report = edit_dataset(prior_model, source_data, config, progress=True)
     if reward_data is not None:
         edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps, seed=seed)))
         report["rewards_relabelled_from"] = relabel_rewards_from

@@ -109,6 +109,9 @@ class PriorConfig(DenoiserConfig):
 
     Learning rate: linear warm-up over ``warmup_steps``, then constant, or, with ``decay_steps``,
     multiplied by a cosine from 1 at step 0 to 0.1 at ``decay_steps`` (constant after).
+    ``train_kappa_max``: training noise steps are drawn from ``0 .. round(train_kappa_max * K) - 1``
+    only, the levels an edit up to that kappa visits (1: every level; a prior trained below 1
+    refuses larger kappas).
     """
 
     num_timesteps: int = 200
@@ -120,6 +123,7 @@ class PriorConfig(DenoiserConfig):
     ema_decay: float = 0.999
     condition_dropout: float = 0.25
     loss_weighting: str = "uniform"
+    train_kappa_max: float = 1.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -134,6 +138,8 @@ class PriorConfig(DenoiserConfig):
             (0.0 <= self.condition_dropout <= 1.0,
              f"condition_dropout must be in [0, 1], got {self.condition_dropout}"),
             (self.loss_weighting in LOSS_WEIGHTINGS, f"loss_weighting must be one of {list(LOSS_WEIGHTINGS)}"),
+            (0.0 < self.train_kappa_max <= 1.0 and self.trained_noise_steps >= 1,
+             f"train_kappa_max must be in (0, 1] and cover at least one noise step, got {self.train_kappa_max}"),
             (self.architecture in ARCHITECTURES,
              f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
@@ -141,6 +147,11 @@ class PriorConfig(DenoiserConfig):
         for ok, message in checks:
             if not ok:
                 raise InputError(f"PriorConfig: {message}")
+
+    @property
+    def trained_noise_steps(self) -> int:
+        """Noise steps the prior is trained on: ``t < round(train_kappa_max * K)``."""
+        return int(round(self.train_kappa_max * self.num_timesteps))
 
     @property
     def denoiser(self) -> DenoiserConfig:
@@ -164,7 +175,10 @@ class EditConfig:
     ``target_return``, used only with a return-conditioned prior; the default 0 edits
     unconditionally, as the paper's Table 1 does (guidance 1 toward 0.9 made IQL collapse on
     halfcheetah thigh: BENCHMARKS.md, "Which edited stream breaks the learner"). ``sampler_steps``:
-    DDIM only (default ``k``). ``clip_denoised``: bound for the predicted ``x_0`` (normalised
+    DDIM only (default ``k``). ``temperature``: scale of the fresh noise each reverse step adds
+    (1: the model's own posterior; 0, the default: none, each step takes the posterior mean;
+    BENCHMARKS.md, "The reverse chain's temperature"). ``eta``: DDIM only, the share of the DDPM posterior's
+    noise its steps add (0: deterministic). ``clip_denoised``: bound for the predicted ``x_0`` (normalised
     units) or None. ``hold_actions``: keep every source action and denoise states (and rewards)
     around them, as the first transition is held (inpainting), so the edit changes what the
     actions lead to, not the actions (an ablation)."""
@@ -178,6 +192,8 @@ class EditConfig:
     sampler: str = "ddpm"
     sampler_steps: int | None = None
     clip_denoised: float | None = None
+    temperature: float = 0.0
+    eta: float = 0.0
     batch_size: int = 1024
     seed: int = 0
 
@@ -192,6 +208,9 @@ class EditConfig:
             (self.clip_denoised is None or self.clip_denoised > 0,
              f"clip_denoised must be > 0, got {self.clip_denoised}"),
             (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
+            (self.temperature >= 0, f"temperature must be >= 0, got {self.temperature}"),
+            (0.0 <= self.eta <= 1.0, f"eta must be in [0, 1], got {self.eta}"),
+            (self.eta == 0.0 or self.sampler == "ddim", "eta is for the ddim sampler only"),
         ]
         for ok, message in checks:
             if not ok:

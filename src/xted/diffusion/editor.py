@@ -8,9 +8,13 @@ do not depend on how windows are grouped into batches.
 
 Dataset tiling: an episode of ``L`` steps becomes the state sequence ``s_0 .. s_L`` (``s_L`` the
 final next observation; the last action and reward repeated at position ``L``), cut into windows
-of ``H`` with stride ``H - 1`` (neighbours share one state) and a last window aligned to the end.
-Transition ``t`` is read from the first window holding ``t`` and ``t + 1``, so ``(s_t, a_t, r_t,
-s_{t+1})`` always comes from one edited window. Edited values are mapped back as
+of ``H`` with stride ``H - 1`` (neighbours share one state) and a last window aligned to the end
+(:func:`xted.data.windows.tile_episodes`). The edit is stitched: an episode's windows are edited in
+order, and each window after the first holds, in place of the source's, the state, action and
+reward its predecessor edited at the shared position, so an edited episode is one sequence
+(``next_observations[t] == observations[t + 1]``) and only its very first transition is the
+source's. Windows of different episodes are edited side by side (``batch_size`` slots, each
+working through whole episodes). Edited values are mapped back as
 ``raw + denormalize(edited) - denormalize(normalized raw)``, which leaves every value the editor
 did not change (held steps, ``kappa = 0``) bit-identical to the source.
 """
@@ -27,6 +31,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm.auto import tqdm
 
 from xted.data import Dataset
 from xted.data.windows import tile_episodes
@@ -55,10 +60,16 @@ class _Plan:
     hold_actions: bool
     guidance: float | None
     clip: float | None
+    temperature: float
+    eta: float
 
 
 def _plan(prior: Prior, config: EditConfig) -> _Plan:
     k = config.noise_steps(prior.config.num_timesteps)
+    if k > prior.config.trained_noise_steps:
+        raise InputError(f"EditConfig: kappa={config.kappa} noises to step {k}, but this prior was trained on noise "
+                         f"steps up to {prior.config.trained_noise_steps} (train_kappa_max="
+                         f"{prior.config.train_kappa_max}); use kappa <= {prior.config.train_kappa_max}")
     if config.sampler == "ddim":
         steps = config.sampler_steps or k
         if steps > k:
@@ -75,6 +86,8 @@ def _plan(prior: Prior, config: EditConfig) -> _Plan:
         hold_actions=config.hold_actions,
         guidance=float(config.guidance) if prior.config.return_condition else None,
         clip=config.clip_denoised,
+        temperature=float(config.temperature),
+        eta=float(config.eta),
     )
 
 
@@ -143,9 +156,13 @@ def _edit(
             eps = _predict_noise(params, plan, {**x0, **x}, t, returns)  # Inv reads no action or reward
             if plan.sampler == "ddim":
                 t_prev = jnp.full((b,), ts_prev[i])
-                return hold({s: ddim_step(schedule, x[s], t, t_prev, eps[s], plan.clip) for s in streams})
+                return hold({
+                    s: ddim_step(schedule, x[s], t, t_prev, eps[s], plan.clip, plan.eta,
+                                 _noise(keys, (it, i + 1, j), x[s]), plan.temperature)
+                    for j, s in enumerate(streams)
+                })
             return hold({
-                s: ddpm_step(schedule, x[s], t, eps[s], _noise(keys, (it, i + 1, j), x[s]), plan.clip)
+                s: ddpm_step(schedule, x[s], t, eps[s], _noise(keys, (it, i + 1, j), x[s]), plan.clip, plan.temperature)
                 for j, s in enumerate(streams)
             })
 
@@ -210,7 +227,9 @@ def edit_windows(
 
 
 # ------------------------------------------------------------------------------- datasets
-def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dataset, dict[str, Any]]:
+def edit_dataset(
+    prior: Prior, source: Dataset, config: EditConfig, progress: bool = False
+) -> tuple[Dataset, dict[str, Any]]:
     """Edit every episode of ``source`` with ``prior``; returns the edited dataset and a report.
 
     Terminals and timeouts are carried from the source, and rewards too for a reward-free prior.
@@ -219,6 +238,7 @@ def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dat
     The source must store next observations (the final state of each episode is edited too).
     Report: ``windows`` edited, ``transitions`` taken from edited windows,
     ``passed_through_episodes``, ``dropped_extras`` and wall ``seconds`` (compilation included).
+    ``progress`` shows a bar over the stitched steps.
     """
     began = time.perf_counter()
     cfg = prior.config
@@ -250,18 +270,22 @@ def edit_dataset(prior: Prior, source: Dataset, config: EditConfig) -> tuple[Dat
     streams = cfg.denoiser.streams
     norm = {s: prior.normalizer.normalize(fields[s], raw[s]).astype(np.float32) for s in streams}
 
-    edited = {s: np.empty((len(tiling.window_rows), cfg.horizon, norm[s].shape[-1]), np.float32) for s in streams}
+    n_windows = len(tiling.window_rows)
+    edited = {s: np.empty((n_windows, cfg.horizon, norm[s].shape[-1]), np.float32) for s in streams}
     edit = _editor(prior, config)
     seed_key = jax.random.key(config.seed)
-    size = min(config.batch_size, max(len(tiling.window_rows), 1))
-    for first in range(0, len(tiling.window_rows), size):
-        rows = tiling.window_rows[first:first + size]
-        ids = np.arange(first, first + size)
-        padded = np.concatenate([rows, np.repeat(rows[-1:], size - len(rows), axis=0)])
-        keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(ids, jnp.uint32))
-        out = edit({s: norm[s][padded] for s in streams}, keys)
+    table = tiling.schedule(min(config.batch_size, max(int(tiling.window_episode.max(initial=0)) + 1, 1)))
+    for ids in tqdm(table, disable=not progress, unit="step", desc="edit", leave=False):
+        live = ids >= 0
+        x = {s: norm[s][tiling.window_rows[np.where(live, ids, 0)]] for s in streams}
+        previous, carried = tiling.window_previous[ids], tiling.window_carry_position[ids]
+        stitched = live & (previous >= 0)
         for s in streams:
-            edited[s][first:first + len(rows)] = np.asarray(out[s])[: len(rows)]
+            x[s][stitched, 0] = edited[s][previous[stitched], carried[stitched]]
+        keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
+        out = edit(x, keys)
+        for s in streams:
+            edited[s][ids[live]] = np.asarray(out[s])[live]
 
     def transitions(stream: str, shift: int) -> np.ndarray:
         window, position = tiling.transition_window, tiling.transition_position + shift

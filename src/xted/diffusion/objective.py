@@ -85,7 +85,7 @@ def loss_fn(
     mask = batch["loss_mask"].astype(jnp.float32)
     b = mask.shape[0]
     t_rng, drop_rng, noise_rng = jax.random.split(rng, 3)
-    t = jax.random.randint(t_rng, (b,), 0, schedule.num_timesteps)
+    t = jax.random.randint(t_rng, (b,), 0, config.trained_noise_steps)
     noise = {s: jax.random.normal(jax.random.fold_in(noise_rng, i), batch[s].shape) for i, s in enumerate(streams)}
     x_t = {s: batch[s] for s in config.denoiser.streams}  # streams not diffused are read by no model
     for s in streams:

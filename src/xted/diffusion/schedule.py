@@ -1,10 +1,12 @@
-"""Noise schedule and samplers (DDPM, DDIM with eta = 0) for epsilon-prediction models.
+"""Noise schedule and samplers (DDPM; DDIM, deterministic or with eta > 0) for epsilon-prediction models.
 
 Index convention (as in diffusers): timesteps are ``t = 0 .. K-1``; ``x_t`` carries the noise of
 ``t + 1`` forward steps. "Noise to step k" (``k`` in ``1..K``) samples ``x`` at ``t = k - 1`` and
 the reverse chain then runs ``t = k-1, ..., 0``: exactly ``k`` model calls. ``k = 0`` is no noise.
 
 ``clip`` (samplers): bound for the predicted ``x_0`` in normalised units, or None (no clipping).
+``temperature`` (samplers): scale of the fresh noise a step adds (1: the model's posterior; 0: its
+mean only), as Diffuser's and the original xTED code's ``sample_temperature`` (0.5 there).
 """
 
 from __future__ import annotations
@@ -82,8 +84,10 @@ def ddpm_step(
     eps: jnp.ndarray,
     noise: jnp.ndarray,
     clip: float | None = None,
+    temperature: float = 1.0,
 ) -> jnp.ndarray:
-    """One ancestral step ``x_t -> x_{t-1}``: posterior mean plus ``sigma_t * noise`` (none at t = 0)."""
+    """One ancestral step ``x_t -> x_{t-1}`` (Ho et al. 2020, Eq. 6-7): posterior mean plus
+    ``temperature * sigma_t * noise`` (none at t = 0)."""
     x0 = predict_x0(schedule, x_t, t, eps, clip)
     mean = (
         _per_sample(schedule.posterior_mean_coef1, t, x_t) * x0
@@ -91,7 +95,7 @@ def ddpm_step(
     )
     sigma = jnp.exp(0.5 * _per_sample(schedule.posterior_log_variance, t, x_t))
     nonzero = _per_sample(jnp.arange(schedule.num_timesteps) > 0, t, x_t)
-    return mean + jnp.where(nonzero, sigma * noise, 0.0)
+    return mean + jnp.where(nonzero, temperature * sigma * noise, 0.0)
 
 
 def ddim_step(
@@ -101,12 +105,22 @@ def ddim_step(
     t_prev: jnp.ndarray,
     eps: jnp.ndarray,
     clip: float | None = None,
+    eta: float = 0.0,
+    noise: jnp.ndarray | None = None,
+    temperature: float = 1.0,
 ) -> jnp.ndarray:
-    """Deterministic DDIM step (eta = 0) from ``t`` to ``t_prev``; ``t_prev = -1`` gives ``x_0``."""
+    """DDIM step from ``t`` to ``t_prev`` (Song et al. 2021, Eq. 12 and 16); ``t_prev = -1`` gives
+    ``x_0``. ``eta = 0`` is deterministic; ``eta = 1`` adds the DDPM posterior's variance, drawn
+    from ``noise`` scaled by ``temperature``."""
     x0 = predict_x0(schedule, x_t, t, eps, clip)
+    abar = _per_sample(schedule.alphas_cumprod, t, x_t)
     abar_prev = jnp.where(t_prev >= 0, schedule.alphas_cumprod[jnp.maximum(t_prev, 0)], 1.0)
     abar_prev = jnp.reshape(abar_prev, jnp.shape(abar_prev) + (1,) * (x_t.ndim - jnp.ndim(abar_prev)))
-    return jnp.sqrt(abar_prev) * x0 + jnp.sqrt(1 - abar_prev) * eps
+    if eta == 0.0 or noise is None:
+        return jnp.sqrt(abar_prev) * x0 + jnp.sqrt(1 - abar_prev) * eps
+    sigma = eta * jnp.sqrt((1 - abar_prev) / (1 - abar) * (1 - abar / abar_prev))
+    direction = jnp.sqrt(jnp.maximum(1 - abar_prev - sigma**2, 0.0)) * eps
+    return jnp.sqrt(abar_prev) * x0 + direction + temperature * sigma * noise
 
 
 def ddim_timesteps(k: int, n_steps: int) -> np.ndarray:
