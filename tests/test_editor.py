@@ -141,6 +141,24 @@ def test_edited_episodes_are_stitched(source, edited):
     assert not np.allclose(result.next_observations[-1], source.next_observations[-1])  # the final state is edited
 
 
+def test_edits_of_a_walker2d_prior_stay_inside_its_observation_space():
+    """Walker2d observes velocities within +-10: edited states beyond are clipped into it (and counted)."""
+    config = dataclasses.replace(TINY, state_dim=17, action_dim=6)
+    wide = build_dataset(lengths=LENGTHS, obs_dim=17, act_dim=6)
+    wide = dataclasses.replace(wide, observations=30 * wide.observations, next_observations=30 * wide.next_observations)
+    prior = dataclasses.replace(random_prior(config), normalizer=Normalizer.fit(wide))
+    source = build_dataset(lengths=LENGTHS, obs_dim=17, act_dim=6, seed=1)
+    unbounded, report = edit_dataset(prior, source, EditConfig(batch_size=BATCH))
+    assert report["clipped_to_observation_space"] == 0 and np.abs(unbounded.observations[:, 8:]).max() > 10
+    bounded, report = edit_dataset(dataclasses.replace(prior, env="walker2d"), source, EditConfig(batch_size=BATCH))
+    assert report["clipped_to_observation_space"] > 0
+    for states in (bounded.observations, bounded.next_observations):
+        assert np.abs(states[:, 8:]).max() <= 10 and np.abs(states[:, :8]).max() > 10  # positions are not bounded
+    np.testing.assert_array_equal(bounded.observations[:, 8:], np.clip(unbounded.observations[:, 8:], -10, 10))
+    for start, end in bounded.episode_bounds():
+        np.testing.assert_array_equal(bounded.next_observations[start:end - 1], bounded.observations[start + 1:end])
+
+
 def test_edit_does_not_depend_on_how_windows_are_batched(prior, source, edited):
     one_at_a_time, _ = edit_dataset(prior, source, EditConfig(batch_size=1, seed=0))
     for name in ("observations", "actions", "rewards", "next_observations"):

@@ -115,6 +115,13 @@ def test_states_beyond_the_velocity_clip_count_as_errors_against_the_clipped_pre
     row = int(fixed[:i].sum())
     assert result.mae_per_transition[row] == pytest.approx(abs(13.0 - nxt[i, -1]) / obs.shape[1], rel=1e-5)
     assert result.summary()["beyond_clip"] == 1
+    # An edit's states are no recording: those at the clip are replayed as they stand, not excluded.
+    edited_obs = obs.copy()
+    edited_obs[i, -1] = 10.0
+    as_recorded = dynamics_error(domain, edited_obs, act, nxt)
+    as_edit = dynamics_error(domain, edited_obs, act, nxt, replay_states_at_clip=True)
+    assert as_recorded.excluded_clipped == exact.excluded_clipped + 1
+    assert (as_edit.n, as_edit.excluded_clipped) == (len(obs), 0)
 
 
 def test_dimension_mismatch_is_refused():

@@ -45,6 +45,7 @@ from xted.diffusion.schedule import (
     ddpm_step,
     q_sample,
 )
+from xted.envs.make import observation_bounds
 from xted.errors import InputError
 
 
@@ -237,7 +238,9 @@ def edit_dataset(
     states) describe the unedited source and are dropped, unless ``kappa = 0`` (source returned as is).
     The source must store next observations (the final state of each episode is edited too).
     Report: ``windows`` edited, ``transitions`` taken from edited windows,
-    ``passed_through_episodes``, ``dropped_extras`` and wall ``seconds`` (compilation included).
+    ``passed_through_episodes``, ``clipped_to_observation_space`` (edited next states outside what
+    the prior's target env can observe, clipped into it: walker2d's velocities), ``dropped_extras``
+    and wall ``seconds`` (compilation included).
     ``progress`` shows a bar over the stitched steps.
     """
     began = time.perf_counter()
@@ -299,8 +302,13 @@ def edit_dataset(
     actions = source.actions.copy()
     rewards = source.rewards.copy()
     t = tiling.transition_steps
-    observations[t] = transitions("state", 0)
-    next_out[t] = transitions("state", 1)
+    states, next_states = transitions("state", 0), transitions("state", 1)
+    bounds = observation_bounds(prior.env)
+    clipped = 0
+    if bounds is not None:  # an edit may leave the observation space (walker2d's velocities beyond +-10)
+        clipped = int(np.any((next_states < bounds[0]) | (next_states > bounds[1]), axis=1).sum())
+        states, next_states = (np.clip(x, *bounds).astype(np.float32) for x in (states, next_states))
+    observations[t], next_out[t] = states, next_states
     actions[t] = transitions("action", 0)
     if cfg.use_reward:
         rewards[t] = transitions("reward", 0)[:, 0]
@@ -312,6 +320,7 @@ def edit_dataset(
         "windows": int(len(tiling.window_rows)),
         "transitions": int(len(t)),
         "passed_through_episodes": int(tiling.passed_through.sum()),
+        "clipped_to_observation_space": clipped,
         "dropped_extras": sorted(source.extras),
         "seconds": time.perf_counter() - began,
     }

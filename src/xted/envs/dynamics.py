@@ -4,11 +4,11 @@ Observations of HalfCheetah and Walker2d omit only the root x position, which do
 the dynamics, so ``s`` fixes the full simulator state (with x = 0) and one env step from it
 under ``a`` gives the true next observation. Walker2d-v5 clips observed velocities to +-10,
 so the next state is compared with the simulator's prediction clipped the same way (what the env
-would observe). A state ``s`` with a velocity *at* the clip bound (a recording's clipped value)
-does not fix the simulator state: its transition is excluded (and counted). A state with a
-velocity *beyond* it (an edit's, which no observation can hold) is replayed as it stands and its
-transition counted as such (``beyond_clip``): its distance from the clipped prediction is part of
-the error. Where the data is a recording of one domain, a clipped state's velocities are
+would observe). In a recording, a state ``s`` with a velocity *at* the clip bound does not fix
+the simulator state: its transition is excluded (and counted). An edit's states are no recording:
+every one is replayed as it stands (``replay_states_at_clip``), at the bound or beyond it (which no
+observation can hold; counted as ``beyond_clip``), so its distance from the clipped prediction is
+part of the error. Where the data is a recording of one domain, a clipped state's velocities are
 recovered by replaying its episode (:func:`recovered_velocities`).
 
 Rewards are replayed the same way, through the domain's Gymnasium env (its own reward function):
@@ -161,15 +161,17 @@ def recovered_velocities(domain: Domain, data: Dataset, tolerance: float = 1e-3)
 
 
 def dynamics_error(
-    domain: Domain, observations: np.ndarray, actions: np.ndarray, next_observations: np.ndarray
+    domain: Domain, observations: np.ndarray, actions: np.ndarray, next_observations: np.ndarray,
+    replay_states_at_clip: bool = False,
 ) -> DynamicsError:
     """Replay (s, a, s') in ``domain`` and compare s' with the simulator's next state as the env
-    observes it (velocities clipped where the env clips them)."""
+    observes it (velocities clipped where the env clips them); states with a velocity at the clip
+    are excluded unless ``replay_states_at_clip`` (data that is not a recording: an edit)."""
     observations = np.asarray(observations, dtype=np.float64)
     next_observations = np.asarray(next_observations, dtype=np.float64)
     model, frame_skip = simulator(domain)
     clip, nq = observation_velocity_clip(domain), model.nq
-    keep = _state_is_fixed(domain, model, observations)
+    keep = np.ones(len(observations), bool) if replay_states_at_clip else _state_is_fixed(domain, model, observations)
     beyond = np.any(np.abs(np.concatenate([observations[:, nq - 1:], next_observations[:, nq - 1:]], axis=1))
                     > clip + 1e-6, axis=1)
     predicted = _replay(model, frame_skip, domain, observations[keep], np.asarray(actions)[keep])
@@ -188,8 +190,10 @@ def _state_is_fixed(domain: Domain, model: mujoco.MjModel, observations: np.ndar
 
 
 def dataset_dynamics_error(domain: Domain, data: Dataset) -> DynamicsError:
-    """:func:`dynamics_error` of every transition of ``data`` (next observations stored or derived)."""
-    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived())
+    """:func:`dynamics_error` of every transition of ``data`` (next observations stored or derived);
+    an edited dataset (its metadata says ``edit``) has every state replayed, at the clip too."""
+    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived(),
+                          replay_states_at_clip="edit" in data.metadata)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -233,9 +237,11 @@ def replayed_rewards(domain: Domain, observations: np.ndarray, actions: np.ndarr
 
 
 def reward_error(domain: Domain, data: Dataset) -> RewardError:
-    """Replay every transition of ``data`` in ``domain`` and compare its recorded reward with the domain's."""
+    """Replay every transition of ``data`` in ``domain`` and compare its recorded reward with the domain's
+    (states at the velocity clip are excluded as in :func:`dataset_dynamics_error`)."""
     observations = np.asarray(data.observations, dtype=np.float64)
-    keep = _state_is_fixed(domain, simulator(domain)[0], observations)
+    keep = np.ones(len(observations), bool) if "edit" in data.metadata else _state_is_fixed(
+        domain, simulator(domain)[0], observations)
     n, excluded = int(keep.sum()), int((~keep).sum())
     if n == 0:
         return RewardError(n, excluded, *[float("nan")] * 5)

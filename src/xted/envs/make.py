@@ -14,7 +14,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from xted.envs.domains import Domain, parse_domain
+from xted.envs.domains import ENV_IDS, Domain, parse_domain
 from xted.envs.morphology import scaled_thigh_xml
 
 WALKER_HEALTHY_Z = (0.8, 2.0)
@@ -73,6 +73,20 @@ def simulator(domain: Domain) -> tuple[mujoco.MjModel, int]:
 def observation_velocity_clip(domain: Domain) -> float:
     """Walker2d-v5 clips velocities in its observations to +-10; HalfCheetah does not clip."""
     return 10.0 if domain.env == "walker2d" else np.inf
+
+
+def observation_bounds(env: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per-dimension ``(low, high)`` of what ``env``'s observations can hold where the env clips them
+    (Walker2d: velocities within +-10), else None (no bound, or an env xted does not know)."""
+    if env not in ENV_IDS:
+        return None
+    domain = Domain(env)
+    clip = observation_velocity_clip(domain)
+    if not np.isfinite(clip):
+        return None
+    model = simulator(domain)[0]
+    high = np.concatenate([np.full(model.nq - 1, np.inf), np.full(model.nv, clip)])
+    return -high, high
 
 
 def forward_velocity_index(domain: Domain) -> int:
