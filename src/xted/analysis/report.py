@@ -20,11 +20,14 @@ def simulator_measures(domain: Domain, data: Dataset) -> dict:
             "excluded_clipped": dynamics.excluded_clipped, "reward_mae": rewards.mae, "reward_bias": rewards.bias}
 
 
-def edit_report(domain: Domain, source: Dataset, edited: Dataset, proxy: DynamicsProxy | None = None) -> dict:
-    """``{"simulator": {"source", "edited"}, "proxy": {"source", "edited"} (with a proxy), "content"}``."""
-    report = {"simulator": {name: simulator_measures(domain, data) for name, data in (("source", source),
-                                                                                      ("edited", edited))}}
+def edit_report(domain: Domain | None, source: Dataset, edited: Dataset, proxy: DynamicsProxy | None = None) -> dict:
+    """``{"simulator": {"source", "edited"}`` (with a domain), ``"proxy": {"source", "edited"}`` (with a
+    proxy), ``"content"}`` (the forward-velocity correlation where the domain names that dim)."""
+    report: dict = {}
+    if domain is not None:
+        report["simulator"] = {name: simulator_measures(domain, data) for name, data in (("source", source),
+                                                                                         ("edited", edited))}
     if proxy is not None:
         report["proxy"] = {"source": proxy.error(source).mae, "edited": proxy.error(edited).mae}
-    report["content"] = content_similarity(source, edited, forward_velocity_index(domain))
+    report["content"] = content_similarity(source, edited, None if domain is None else forward_velocity_index(domain))
     return report

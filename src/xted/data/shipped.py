@@ -48,3 +48,8 @@ def policies_dir() -> Path:
 def prior_dir(name: str) -> Path:
     """The folder of the shipped (exported) prior called ``name``."""
     return assets_dir().parent / "priors" / name
+
+
+def prior_names() -> list[str]:
+    """The names of the priors shipped with xted."""
+    return sorted(p.name for p in (assets_dir().parent / "priors").iterdir() if (p / "prior.json").is_file())

@@ -221,6 +221,15 @@ class EditConfig:
         return int(round(self.kappa * num_timesteps))
 
 
+def check_fields(config: type, fields: dict[str, Any]) -> dict[str, Any]:
+    """``fields`` if each names a field of the dataclass ``config``, else an InputError naming the unknown ones."""
+    names = {f.name for f in dataclasses.fields(config)}
+    unknown = sorted(set(fields) - names)
+    if unknown:
+        raise InputError(f"{config.__name__} has no field {', '.join(unknown)}; its fields: {', '.join(sorted(names))}")
+    return fields
+
+
 def _paper(state_dim: int, action_dim: int) -> PriorConfig:
     """The paper's setup (appendix hyperparameter table). Optimiser settings are not stated there;
     Adam at 2e-4 with batch 256 follows Diffuser / Decision Diffuser, plus a short warm-up."""

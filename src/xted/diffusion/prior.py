@@ -14,8 +14,8 @@ import jax
 import numpy as np
 
 from xted.atomic import atomic_path
-from xted.data import Normalizer
-from xted.diffusion.config import PriorConfig
+from xted.data import Dataset, Normalizer
+from xted.diffusion.config import EditConfig, PriorConfig, check_fields
 from xted.diffusion.denoiser import Denoiser
 from xted.diffusion.schedule import Schedule, cosine_schedule
 from xted.errors import InputError
@@ -58,6 +58,15 @@ class Prior:
     @property
     def schedule(self) -> Schedule:
         return cosine_schedule(self.config.num_timesteps)
+
+    def edit(self, source: Dataset, kappa: float = 0.5, seed: int = 0, progress: bool = False,
+             **fields: Any) -> Dataset:
+        """``source`` edited toward this prior's target dynamics (:func:`xted.diffusion.editor.edit_dataset`);
+        ``fields`` set any other :class:`EditConfig` field (``temperature``, ``sampler``, ...)."""
+        from xted.diffusion.editor import edit_dataset
+
+        config = EditConfig(kappa=kappa, seed=seed, **check_fields(EditConfig, fields))
+        return edit_dataset(self, source, config, progress)[0]
 
 
 EXPORTED_PARAMS = "params.msgpack"

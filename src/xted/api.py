@@ -1,0 +1,75 @@
+"""xted's public Python API, as the CLI runs it: load data, train or load a prior, edit, measure.
+
+    import xted
+    target = xted.load_dataset("halfcheetah-medium-replay")     # a path, a shipped name or minari:ID
+    source = xted.load_dataset("halfcheetah-thigh")
+    prior = xted.train_prior(target, out="runs/prior")          # resumable, with a progress bar
+    prior = xted.load_prior("halfcheetah-medium-replay-cpu")    # a shipped prior's name, or a folder
+    edited = prior.edit(source, kappa=0.5, seed=0)              # a Dataset with the source's schema
+    report = xted.measure_edit(source, edited, target=target, env="halfcheetah")
+
+Every name is exported from ``xted`` itself and loaded on first use, so ``import xted`` stays light.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from xted.data import Dataset
+from xted.errors import InputError
+
+
+def load_dataset(source: str | Path) -> Dataset:
+    """A dataset from a ``.npz`` / D4RL-style ``.hdf5`` file, a local Minari dataset (``minari:ID``
+    or its folder), or a dataset shipped with xted by name (``xted data list``)."""
+    from xted.data import load
+
+    return load(source)
+
+
+def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cpu", steps: int = 20_000,
+                seed: int = 0, heldout_episodes: int = 0, progress: bool = True, **fields: Any):
+    """Train (or resume, in ``out``) a diffusion prior on ``target`` and return it, loaded.
+
+    ``preset``: ``cpu`` (small, fast) or ``paper``; ``fields`` replace any of its
+    :class:`~xted.diffusion.config.PriorConfig` fields (``decay_steps=20_000``, ...);
+    ``heldout_episodes`` random target episodes are left out of training (to measure the floor)."""
+    from xted.data import split_heldout
+    from xted.diffusion.config import PriorConfig, check_fields
+    from xted.diffusion.config import preset as make_preset
+    from xted.diffusion.training import train_prior as train
+
+    data = load_dataset(target) if isinstance(target, (str, Path)) else target
+    data, _ = split_heldout(data, heldout_episodes)
+    config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed, **check_fields(PriorConfig, fields))
+    return load_prior(train(data, out, config, steps, progress=progress))
+
+
+def load_prior(source: str | Path):
+    """A trained prior from its folder (``xted train --out``, or an exported copy), or a prior
+    shipped with xted by name (``halfcheetah-medium-replay-cpu``, ``walker2d-medium-replay-cpu``)."""
+    from xted.data import shipped
+    from xted.diffusion.prior import load_prior as load
+
+    path = Path(source)
+    if not path.exists() and isinstance(source, str) and (shipped.prior_dir(source) / "prior.json").is_file():
+        path = shipped.prior_dir(source)
+    if not path.exists():
+        raise InputError(f"{source!r}: no prior folder or shipped prior of that name "
+                         f"(shipped priors: {', '.join(shipped.prior_names())})")
+    return load(path)
+
+
+def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None, env: str | None = None,
+                 proxy_steps: int = 20_000, seed: int = 0) -> dict:
+    """What an edit did: ``content`` always (how much of the source's task content it kept);
+    ``proxy`` with ``target`` (the paper's measure: one-step error of source and edit under an MLP
+    dynamics model fitted to the target, ``proxy_steps`` Adam steps); ``simulator`` with ``env``
+    (``halfcheetah`` or ``walker2d``: every transition replayed in that target simulator)."""
+    from xted.analysis import ProxyConfig, edit_report, fit_proxy
+    from xted.envs import parse_domain
+
+    proxy = None if target is None else fit_proxy(target, ProxyConfig(steps=proxy_steps, seed=seed), progress=False)
+    return edit_report(None if env is None else parse_domain(env), source, edited, proxy)
+

@@ -1,0 +1,51 @@
+"""The public Python API (``import xted``): the pipeline a notebook runs, on tiny settings."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import build_dataset
+
+import xted
+from xted.errors import InputError
+
+TINY_PRIOR = dict(width_override=8, state_blocks=1, action_blocks=1, reward_blocks=1, num_heads=2, cond_dim=16,
+                  horizon=4, num_timesteps=10, batch_size=16, warmup_steps=0, decay_steps=None)
+
+
+def test_import_xted_stays_light():
+    code = "import sys, xted; xted.__all__; print(sorted(m for m in ('jax', 'flax', 'mujoco') if m in sys.modules))"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
+
+
+def test_train_edit_measure_through_the_public_names(tmp_path):
+    target = build_dataset(lengths=(9, 10, 12), seed=0)
+    source = build_dataset(lengths=(9, 12), seed=1)
+    np.savez(tmp_path / "target.npz", **{k: getattr(target, k) for k in
+                                         ("observations", "actions", "rewards", "terminals", "timeouts")})
+    loaded = xted.load_dataset(tmp_path / "target.npz")
+    prior = xted.train_prior(loaded, out=tmp_path / "prior", steps=3, progress=False, **TINY_PRIOR)
+    assert isinstance(prior, xted.Prior) and prior.step == 3 and prior.config.horizon == 4
+    assert xted.load_prior(tmp_path / "prior").step == 3  # the folder, reloaded
+    edited = prior.edit(source, kappa=0.5, seed=0)
+    again = xted.load_prior(tmp_path / "prior").edit(source, kappa=0.5, seed=0)
+    assert isinstance(edited, xted.Dataset) and len(edited) == len(source)
+    np.testing.assert_array_equal(edited.observations, again.observations)  # same seed, same edit
+    assert not np.allclose(edited.observations[1:9], source.observations[1:9])
+    report = xted.measure_edit(source, edited, target=target, proxy_steps=20)
+    assert set(report) == {"proxy", "content"} and report["proxy"]["edited"] >= 0
+    assert set(xted.measure_edit(source, edited)) == {"content"}
+    with pytest.raises(InputError, match="EditConfig has no field bogus"):
+        prior.edit(source, bogus=1)
+    with pytest.raises(InputError, match="PriorConfig has no field widht"):
+        xted.train_prior(target, out=tmp_path / "other", steps=1, widht=3)
+
+
+def test_load_prior_takes_a_shipped_prior_by_name():
+    prior = xted.load_prior("halfcheetah-medium-replay-cpu")
+    assert prior.env == "halfcheetah" and prior.config.state_dim == 17
+    with pytest.raises(InputError, match="shipped priors: halfcheetah-medium-replay-cpu"):
+        xted.load_prior("no-such-prior")
