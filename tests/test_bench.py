@@ -16,7 +16,9 @@ from xted.envs import parse_domain
 from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.errors import InputError
 from xted.pipelines.bench import cells, grid, ray_executor, run, store
+from xted.diffusion.config import EditConfig
 from xted.pipelines.bench.config import COLUMNS, BenchConfig
+from xted.pipelines.bench.edit_quality import edit_label
 from xted.pipelines.bench.grid import first_transitions, plan
 from xted.pipelines.bench.run import CellsFailed, run_bench
 
@@ -268,6 +270,15 @@ def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, caps
     assert main([*options, "--edit-quality", str(rows)]) == 2
     assert "quality.jsonl:1: not an edit-quality row (no gap, kappa" in capsys.readouterr().err
     assert main([*options[:-1], "--edit-quality", str(rows)]) == 2
+
+
+def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaults():
+    defaults = dataclasses.asdict(EditConfig())
+    row = edit_quality_row("thigh", 1.2, 0.6)
+    assert edit_label(row) == "default"  # a row from before edit configs were recorded: its --edit list
+    assert edit_label({**row, "edit_config": {**defaults, "kappa": 0.7, "seed": 3}}) == "default"
+    assert edit_label({**row, "edit_config": {**defaults, "temperature": 1.0, "sampler": "ddim"}}) == (
+        "sampler=ddim temperature=1.0")
 
 
 @pytest.mark.parametrize("option, value, message", [

@@ -151,7 +151,7 @@ def demo(
         prior_folder = out / "prior"
         train_prior(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], prior_folder, config, steps or shipped_prior.step)
     prior = load_prior(prior_folder)
-    edited, report = edit_dataset(prior, source, EditConfig(seed=seed))
+    edited, report = edit_dataset(prior, source, EditConfig(seed=seed), progress=True)
     formats.save(edited, edited_path)
     domain = parse_domain("halfcheetah")
     factor = PAPER_GAPS["halfcheetah"][gap][gap]

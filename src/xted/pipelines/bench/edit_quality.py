@@ -4,10 +4,12 @@ bench's edit targets."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from xted.diffusion.config import EditConfig
 from xted.errors import InputError
 
 NEEDED = ("env", "gap", "kappa", "sim_source", "sim_edited", "proxy_source", "proxy_edited", "floor", "content")
@@ -55,6 +57,17 @@ def read_rows(paths: Sequence[Path]) -> list[dict]:
     return rows
 
 
+def edit_label(row: dict) -> str:
+    """The row's edit settings that differ from today's EditConfig defaults (kappa and seed apart),
+    or "default"; a row written before ``edit_config`` was recorded shows its ``--edit`` overrides."""
+    if "edit_config" not in row:
+        return " ".join(row.get("edit") or []) or "default"
+    defaults = dataclasses.asdict(EditConfig())
+    changed = [f"{key}={value}" for key, value in row["edit_config"].items()
+               if key not in ("kappa", "seed") and key in defaults and value != defaults[key]]
+    return " ".join(changed) or "default"
+
+
 def checked(row: dict) -> dict[str, bool | None]:
     """Each target's verdict on ``row``: met, not met, or None where it does not apply."""
     return {name: (meets(row) if applies(row) else None) for name, (_, applies, meets) in TARGETS.items()}
@@ -72,7 +85,7 @@ def markdown(rows: Sequence[dict]) -> str:
         correlation = row["content"]["matched"]["forward_velocity_correlation"]
         chance = row["content"]["mismatched"]["forward_velocity_correlation"]
         cells = [
-            row["env"], row["gap"], f"{row['kappa']:g}", " ".join(row.get("edit") or []) or "default",
+            row["env"], row["gap"], f"{row['kappa']:g}", edit_label(row),
             f"{row['sim_source']:.3f} -> {row['sim_edited']:.3f} ({row['sim_edited'] / row['sim_source']:.2f})",
             f"{row['sim_edited'] / row['floor']['sim']:.2f}",
             f"{row['floor']['sim']:.3f} / {row['floor']['proxy']:.3f}",
