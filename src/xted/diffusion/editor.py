@@ -303,9 +303,9 @@ def edit_dataset(
     rewards = source.rewards.copy()
     t = tiling.transition_steps
     states, next_states = transitions("state", 0), transitions("state", 1)
-    bounds = observation_bounds(prior.env)
+    bounds = observation_bounds(prior.env)  # walker2d observes velocities within +-10
     clipped = 0
-    if bounds is not None:  # an edit may leave the observation space (walker2d's velocities beyond +-10)
+    if bounds is not None and len(bounds[0]) == cfg.state_dim:  # an edit may leave the observation space
         clipped = int(np.any((next_states < bounds[0]) | (next_states > bounds[1]), axis=1).sum())
         states, next_states = (np.clip(x, *bounds).astype(np.float32) for x in (states, next_states))
     observations[t], next_out[t] = states, next_states
