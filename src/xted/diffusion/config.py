@@ -162,11 +162,7 @@ class PriorConfig(DenoiserConfig):
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PriorConfig:
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(data) - names
-        if unknown:
-            raise InputError(f"PriorConfig: unknown fields {sorted(unknown)}")
-        return cls(**data)
+        return cls(**check_fields(cls, data))
 
 
 @dataclass(frozen=True)
@@ -177,7 +173,7 @@ class EditConfig:
     halfcheetah thigh: BENCHMARKS.md, "Which edited stream breaks the learner"). ``sampler_steps``:
     DDIM only (default ``k``). ``temperature``: scale of the fresh noise each reverse step adds
     (1: the model's own posterior; 0, the default: none, each step takes the posterior mean;
-    BENCHMARKS.md, "The reverse chain's temperature"). ``eta``: DDIM only, the share of the DDPM posterior's
+    BENCHMARKS.md, "Edit precision"). ``eta``: DDIM only, the share of the DDPM posterior's
     noise its steps add (0: deterministic). ``clip_denoised``: bound for the predicted ``x_0`` (normalised
     units) or None. ``hold_actions``: keep every source action and denoise states (and rewards)
     around them, as the first transition is held (inpainting), so the edit changes what the
