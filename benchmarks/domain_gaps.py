@@ -17,11 +17,11 @@ from xted.data.shipped import policies_dir
 from xted.envs import PAPER_GAPS, parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 from xted.rl.evaluation import evaluate
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 
 
 def greedy_return(policy_name: str, domain, episodes: int) -> float:
-    actor = Actor.load(policies_dir() / f"{policy_name}-expert.msgpack")
+    actor = Policy.load(policies_dir() / f"{policy_name}-expert.msgpack")
     return evaluate(actor.act, domain, episodes, seed=123)["return_mean"]
 
 

@@ -25,7 +25,7 @@ from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 from xted.envs.make import forward_velocity_index
 from xted.rl.collect import collect
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 
 
 def main() -> None:
@@ -42,7 +42,7 @@ def main() -> None:
 
     target = parse_domain(args.env)
     prior = load_prior(args.prior)
-    actor = Actor.load(policies_dir() / f"{args.policy}-expert.msgpack")
+    actor = Policy.load(policies_dir() / f"{args.policy}-expert.msgpack")
     forward = forward_velocity_index(target)
 
     def sim(data: Dataset) -> float:

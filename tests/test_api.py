@@ -49,3 +49,24 @@ def test_load_prior_takes_a_shipped_prior_by_name():
     assert prior.env == "halfcheetah" and prior.config.state_dim == 17
     with pytest.raises(InputError, match="shipped priors: halfcheetah-medium-replay-cpu"):
         xted.load_prior("no-such-prior")
+
+
+def test_train_save_load_a_policy_without_a_simulator(tmp_path):
+    target = build_dataset(lengths=(9, 10, 12), seed=0)
+    source = build_dataset(lengths=(9, 12), seed=1)
+    policy = xted.train_policy("td3bc", target, sources=[source], steps=20, seed=3, progress=False, hidden=(8, 8),
+                               batch_size=16)
+    assert isinstance(policy, xted.Policy) and policy.scores["final_score"] is None
+    assert policy.meta["data"] == [target.fingerprint(), source.fingerprint()] and policy.meta["seed"] == 3
+    loaded = xted.load_policy(policy.save(tmp_path / "policy"))
+    np.testing.assert_array_equal(loaded.act(target.observations), policy.act(target.observations))
+    assert np.abs(policy.act(target.observations)).max() <= 1.0
+    again = xted.train_policy("td3bc", target, sources=[source], steps=20, seed=3, progress=False, hidden=(8, 8),
+                              batch_size=16)
+    np.testing.assert_array_equal(again.act(target.observations), policy.act(target.observations))  # same seed
+    with pytest.raises(InputError, match="TD3BCConfig has no field expectile"):
+        xted.train_policy("td3bc", target, steps=1, expectile=0.9)
+    with pytest.raises(InputError, match="give env too"):
+        xted.train_policy("bc", target, steps=1, gap="thigh")
+    with pytest.raises(InputError, match="does not exist"):
+        xted.load_policy(tmp_path / "nothing")

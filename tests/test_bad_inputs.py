@@ -119,6 +119,13 @@ def _results_of_other_data(ws: Path) -> str:
     return str(out)
 
 
+def _policies_of_other_data(ws: Path) -> str:
+    """A --save folder holding a saved policy trained on another dataset."""
+    out = ws / "policies"
+    assert main(["policy", "--target", _halfcheetah_like(ws, "other.npz", 1000), *POLICY_QUICK, "--save", str(out)]) == 0
+    return str(out)
+
+
 def _not_a_run(ws: Path) -> str:
     folder = ws / "my-notes"
     folder.mkdir()
@@ -226,6 +233,20 @@ CASES = [
     Case("policy-force-not-a-run", "--force on a folder that holds no results",
          lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 1000), *POLICY_QUICK,
                      "--out", _not_a_run(ws), "--force"], "refusing to delete"),
+    Case("policy-no-env-no-save", "data of no known env, trained without --save (nothing would be kept)",
+         lambda ws: ["policy", "--target", _tiny(ws), "--steps", "10"], "give --save DIR"),
+    Case("policy-env-none-no-save", "--env none without --save",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 100), "--env", "none", "--steps", "10"],
+         "give --save DIR"),
+    Case("policy-gap-without-env", "--gap with --env none",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 100), "--env", "none", "--gap", "thigh",
+                     "--save", str(ws / "p")], "give --env too"),
+    Case("policy-save-other-run", "--save holds policies of other data",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 900), *POLICY_QUICK,
+                     "--save", _policies_of_other_data(ws)], "data:"),
+    Case("policy-save-is-a-file", "--save names a file",
+         lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 100), *POLICY_QUICK,
+                     "--save", _tiny(ws)], "not a folder"),
     Case("render-unknown-format", "render to a .avi file",
          lambda ws: ["render", "--env", "halfcheetah", _halfcheetah_like(ws, "s.npz", 100), "--out", str(ws / "v.avi")],
          ".avi"),

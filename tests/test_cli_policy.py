@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 import xted.rl.offline_train
@@ -11,6 +13,7 @@ from xted.cli.main import main
 from xted.data import save
 from xted.pipelines.behaviour_data import build_dataset
 from xted.envs import parse_domain
+from xted.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +52,72 @@ def test_policy_json_and_resume(halfcheetah, tmp_path, capsys, monkeypatch):
     retrained = json.loads(capsys.readouterr().out)
     assert retrained["scores"] != out["scores"]
     assert main(other_args) == 0  # and the new results are resumed from
+
+
+def test_save_policies_and_resume_from_them(halfcheetah, tmp_path, capsys, monkeypatch):
+    from xted.api import load_policy
+    from xted.data import load
+    from xted.rl.offline_train import seed_policy
+    from xted.rl.configs import BCConfig
+
+    save_dir = tmp_path / "policies"
+    args = ["policy", "--algo", "bc", "--target", str(halfcheetah), "--env", "halfcheetah", "--steps", "30",
+            "--seeds", "0,1", "--eval-episodes", "1", "--set", "hidden=16,16", "--save", str(save_dir), "--json"]
+    assert main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["saved"] == [str(save_dir / "seed_0"), str(save_dir / "seed_1")]
+    policy = load_policy(save_dir / "seed_1")
+    assert policy.meta["seed"] == 1 and policy.meta["algo"] == "bc" and policy.scores["final_score"] == out["scores"][1]
+    assert policy.meta["data"] == [load(halfcheetah).fingerprint()]
+    with pytest.raises(InputError, match="policies of 2 seeds"):
+        load_policy(save_dir)
+    # The saved policy acts as the one evaluated in training did: standardise, then the actor.
+    obs = load(halfcheetah).observations[:7]
+    evaluated = seed_policy(BCConfig(hidden=(16, 16)), _actor_state(policy), np.asarray(policy.meta["obs_mean"]),
+                            np.asarray(policy.meta["obs_std"]))
+    np.testing.assert_allclose(policy.act(obs), evaluated(obs), atol=1e-6)
+    np.testing.assert_allclose(policy.act(obs[3]), policy.act(obs)[3], atol=1e-6)
+    with pytest.raises(InputError, match="takes 17 features"):
+        policy.act(obs[:, :5])
+
+    monkeypatch.setattr(xted.rl.offline_train, "_train_group", lambda *a: pytest.fail("saved seeds were retrained"))
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["scores"] == out["scores"]
+    assert main([*args, "--steps", "31"]) == 2  # --save holds policies of another run
+    monkeypatch.undo()
+    assert main([*args, "--steps", "31", "--force"]) == 0
+    assert load_policy(save_dir / "seed_0").meta["steps"] == 31
+
+
+def _actor_state(policy):
+    """A TrainState-like holder of a saved policy's parameters, as ``seed_policy`` takes."""
+    from flax.training.train_state import TrainState
+
+    from xted.rl.networks import DeterministicPolicy
+
+    module = DeterministicPolicy(tuple(policy.meta["hidden"]), policy.meta["action_dim"])
+    return TrainState(step=0, apply_fn=module.apply, params=policy.params, tx=None, opt_state=None)
+
+
+def test_train_without_a_simulator(halfcheetah, tmp_path, capsys, monkeypatch):
+    from xted.api import load_policy
+    from xted.data import load
+
+    unknown_env = tmp_path / "robot.npz"
+    save(dataclasses.replace(load(halfcheetah), metadata={}), unknown_env)
+    args = ["policy", "--algo", "iql", "--target", str(unknown_env), "--steps", "20", "--set", "hidden=16,16"]
+    assert main(args) == 2 and "give --save DIR" in capsys.readouterr().err  # nothing would come of it
+    monkeypatch.setattr(xted.rl.offline_train, "evaluate", lambda *a, **k: pytest.fail("evaluated without an env"))
+    assert main([*args, "--save", str(tmp_path / "p")]) == 0
+    assert "not evaluated (no env)" in capsys.readouterr().out
+    policy = load_policy(tmp_path / "p")  # the one seed's folder
+    assert policy.meta["domain"] is None and policy.scores["final_score"] is None and policy.kind == "gaussian"
+    # Data of a known env trains without one too when asked: --env none.
+    assert main(["policy", "--target", str(halfcheetah), "--env", "none", "--steps", "5", "--set", "hidden=8,8",
+                 "--save", str(tmp_path / "q"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mean"] is None
+    assert main(["policy", "--target", str(halfcheetah), "--env", "none", "--steps", "5"]) == 2
+    assert main([*args, "--gap", "thigh", "--save", str(tmp_path / "r")]) == 2
 
 
 def test_dara_with_nested_overrides(halfcheetah, capsys):

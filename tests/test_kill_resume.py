@@ -20,7 +20,7 @@ from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.pipelines.behaviour_data import build_dataset as make_data
 from xted.rl.online import actor_checkpoint
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 
 XTED = [sys.executable, "-c", "from xted.cli.main import run; run()"]
 
@@ -69,8 +69,8 @@ def test_online_training_killed_and_resumed(tmp_path):
     run_killed_when(args(tmp_path / "killed"), lambda: (tmp_path / "killed" / "evals.csv").exists())
     xted(args(tmp_path / "killed"))
     xted(args(tmp_path / "straight"))
-    assert_trees_equal(Actor.load(actor_checkpoint(tmp_path / "killed", 2000)).params,
-                       Actor.load(actor_checkpoint(tmp_path / "straight", 2000)).params)
+    assert_trees_equal(Policy.load(actor_checkpoint(tmp_path / "killed", 2000)).params,
+                       Policy.load(actor_checkpoint(tmp_path / "straight", 2000)).params)
 
 
 def test_prior_training_killed_and_resumed(tmp_path, tiny_files):

@@ -10,7 +10,7 @@ from xted.envs import parse_domain
 from xted.errors import InputError
 from xted.rl.configs import ONLINE_ALGORITHM_NAMES
 from xted.rl.online import ONLINE_ALGORITHMS, OnlineRunConfig, actor_checkpoint, read_evals, train_online
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 from xted.rl.sac import SACConfig, init_sac, sac_update
 from xted.rl.td3bc import TD3BCConfig
 
@@ -44,8 +44,8 @@ def test_online_run_resumes_to_the_same_policy(tmp_path, algo):
     train_online(domain, tmp_path / "straight", OnlineRunConfig(total_steps=1500, **base), progress=False)
     train_online(domain, tmp_path / "resumed", OnlineRunConfig(total_steps=1000, **base), progress=False)
     train_online(domain, tmp_path / "resumed", OnlineRunConfig(total_steps=1500, **base), progress=False)
-    straight = Actor.load(actor_checkpoint(tmp_path / "straight", 1500))
-    resumed = Actor.load(actor_checkpoint(tmp_path / "resumed", 1500))
+    straight = Policy.load(actor_checkpoint(tmp_path / "straight", 1500))
+    resumed = Policy.load(actor_checkpoint(tmp_path / "resumed", 1500))
     _params_equal(straight.params, resumed.params)
     assert straight.kind == {"sac": "tanh_gaussian", "td3": "deterministic"}[algo]
     evals = read_evals(tmp_path / "resumed")
@@ -64,8 +64,8 @@ def test_block_size_changes_only_when_the_actor_is_refreshed(tmp_path):
     base = dict(algo="sac", total_steps=1000, start_steps=1000, checkpoint_every=1000, eval_episodes=1, sac=TINY)
     for block in (1, 50):
         train_online(domain, tmp_path / str(block), OnlineRunConfig(block=block, **base), progress=False)
-    _params_equal(Actor.load(actor_checkpoint(tmp_path / "1", 1000)).params,
-                  Actor.load(actor_checkpoint(tmp_path / "50", 1000)).params)
+    _params_equal(Policy.load(actor_checkpoint(tmp_path / "1", 1000)).params,
+                  Policy.load(actor_checkpoint(tmp_path / "50", 1000)).params)
 
 
 def test_resume_refuses_other_settings_and_a_shorter_run(tmp_path):
@@ -158,8 +158,8 @@ def test_init_from_starts_from_the_runs_networks_and_is_part_of_the_run(tmp_path
     # No update before --start-steps: the fine-tuned run's first actor is the expert's last one.
     tuned = OnlineRunConfig(total_steps=1000, start_steps=5000, init_from=str(tmp_path / "expert"), **base)
     train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "tuned", tuned, progress=False)
-    expert = Actor.load(actor_checkpoint(tmp_path / "expert", 1000))
-    _params_equal(Actor.load(actor_checkpoint(tmp_path / "tuned", 1000)).params, expert.params)
+    expert = Policy.load(actor_checkpoint(tmp_path / "expert", 1000))
+    _params_equal(Policy.load(actor_checkpoint(tmp_path / "tuned", 1000)).params, expert.params)
     with np.load(tmp_path / "tuned" / "buffer.npz") as buffer:  # acted by the expert (plus noise), not uniformly
         greedy = expert.act(buffer["observations"][:20])
         assert np.abs(buffer["actions"][:20] - greedy).max() < 0.5  # noise std 0.1; uniform would stray by ~1

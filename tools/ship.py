@@ -25,7 +25,7 @@ from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset
 from xted.data.formats import save
 from xted.data.shipped import MANIFEST_NAME, assets_dir
 from xted.envs import PAPER_GAPS, parse_domain
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 from xted.rl.run_folder import read_evals
 
 TARGET_LEVELS = ("medium", "medium-replay", "medium-expert")
@@ -59,7 +59,7 @@ def _ship_policies(env: str, gaps: list[str | None], runs: Path, folder: Path) -
         init = f" --init-from {Path(init_from).name}" if init_from else ""
         init += f" --terminate-above-pitch {tipping}" if tipping is not None else ""
         for role, source in roles.items():
-            meta = Actor.load(source).meta
+            meta = Policy.load(source).meta
             step, algo = meta["step"], meta.get("algo", "sac")
             dest = folder / f"{domain.name}-{role}.msgpack"
             shutil.copyfile(source, dest)

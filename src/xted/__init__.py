@@ -1,7 +1,8 @@
 """xted: cross-domain trajectory editing with diffusion models.
 
-The public API (:mod:`xted.api`): ``load_dataset``, ``train_prior``, ``load_prior``,
-``measure_edit``, a prior's ``edit``; loaded on first use, so ``import xted`` stays light.
+The public API (:mod:`xted.api`): ``load_dataset``, ``train_prior``, ``load_prior``, a prior's
+``edit``, ``measure_edit``, ``train_policy``, ``load_policy``; loaded on first use, so ``import
+xted`` stays light.
 """
 
 from xted.lazy import lazy_exports
@@ -10,7 +11,9 @@ __version__ = "0.1.0"
 
 _EXPORTS = {
     "load_dataset": "api", "train_prior": "api", "load_prior": "api", "measure_edit": "api",
+    "train_policy": "api", "load_policy": "api",
     "Dataset": "data", "EditConfig": "diffusion", "PriorConfig": "diffusion", "Prior": "diffusion",
+    "Policy": "rl.policy_io",
 }
 
 __all__ = sorted(_EXPORTS)

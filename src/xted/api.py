@@ -7,6 +7,10 @@
     prior = xted.load_prior("halfcheetah-medium-replay-cpu")    # a shipped prior's name, or a folder
     edited = prior.edit(source, kappa=0.5, seed=0)              # a Dataset with the source's schema
     report = xted.measure_edit(source, edited, target=target, env="halfcheetah")
+    policy = xted.train_policy("iql", target, sources=[edited], steps=30_000, env="halfcheetah")
+    policy.save("runs/policy")                                  # env=None: trains without a simulator
+    policy = xted.load_policy("runs/policy")
+    action = policy.act(observation)
 
 Every name is exported from ``xted`` itself and loaded on first use, so ``import xted`` stays light.
 """
@@ -14,7 +18,7 @@ Every name is exported from ``xted`` itself and loaded on first use, so ``import
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from xted.data import Dataset
 from xted.errors import InputError
@@ -36,13 +40,14 @@ def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cp
     :class:`~xted.diffusion.config.PriorConfig` fields (``decay_steps=20_000``, ...);
     ``heldout_episodes`` random target episodes are left out of training (to measure the floor)."""
     from xted.data import split_heldout
-    from xted.diffusion.config import PriorConfig, check_fields
+    from xted.config import known_fields
+    from xted.diffusion.config import PriorConfig
     from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior as train
 
     data = load_dataset(target) if isinstance(target, (str, Path)) else target
     data, _ = split_heldout(data, heldout_episodes)
-    config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed, **check_fields(PriorConfig, fields))
+    config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed, **known_fields(PriorConfig, fields))
     return load_prior(train(data, out, config, steps, progress=progress))
 
 
@@ -73,3 +78,46 @@ def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None
     proxy = None if target is None else fit_proxy(target, ProxyConfig(steps=proxy_steps, seed=seed), progress=False)
     return edit_report(None if env is None else parse_domain(env), source, edited, proxy)
 
+
+
+def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Dataset | str | Path] = (),
+                 steps: int = 30_000, seed: int = 0, env: str | None = None, gap: str | None = None,
+                 eval_every: int = 10_000, eval_episodes: int = 10, progress: bool = True, **fields: Any):
+    """Train an offline policy (``iql``, ``td3bc``, ``bc`` or ``dara``) on ``target`` + ``sources``
+    and return it (a :class:`~xted.rl.policy_io.Policy`: ``act``, ``save``, ``scores``).
+
+    ``env`` (``halfcheetah`` / ``walker2d``, with ``gap`` for another domain of it) evaluates the
+    policy every ``eval_every`` steps in that simulator; None trains without one (data of any
+    robot). ``fields`` replace fields of the algorithm's config (``expectile=0.9``,
+    ``hidden=(64, 64)``; DARA's backbone as ``iql=IQLConfig(...)``)."""
+    import dataclasses
+
+    from xted.config import known_fields
+    from xted.envs import parse_domain
+    from xted.rl.offline_train import default_config, train_offline
+
+    config = default_config(algo)
+    config = dataclasses.replace(config, **known_fields(type(config), fields))
+    if gap is not None and env is None:
+        raise InputError("gap names a domain of an env: give env too")
+    domain = None if env is None else parse_domain(env, gap)
+    data = [load_dataset(d) if isinstance(d, (str, Path)) else d for d in (target, *sources)]
+    (result,) = train_offline(config, data[0], data[1:], domain, steps, [seed], eval_every=eval_every,
+                              eval_episodes=eval_episodes, progress=progress)
+    return result["policy"]
+
+
+def load_policy(source: str | Path):
+    """A policy saved by ``Policy.save``, or by ``xted policy --save DIR`` (DIR itself when it holds
+    one seed's policy, else ``DIR/seed_N``)."""
+    from xted.rl.policy_io import POLICY_FILE, Policy
+
+    path = Path(source)
+    if path.is_dir() and not (path / POLICY_FILE).exists():
+        seeds = sorted(p.parent.name for p in path.glob(f"seed_*/{POLICY_FILE}"))
+        if len(seeds) == 1:
+            path = path / seeds[0]
+        elif seeds:
+            raise InputError(f"{path} holds the policies of {len(seeds)} seeds ({', '.join(seeds)}): "
+                             f"load one of them, e.g. {path / seeds[0]}")
+    return Policy.load(path)

@@ -68,6 +68,17 @@ def apply_overrides(config: Any, pairs: list[str]) -> Any:
     return dataclasses.replace(config, **changes)
 
 
+def known_fields(config_type: type, fields: dict[str, Any]) -> dict[str, Any]:
+    """``fields`` if each names a field of the dataclass ``config_type``, else an InputError naming
+    the unknown ones (keyword arguments of the Python API, a config read from JSON)."""
+    names = {f.name for f in dataclasses.fields(config_type)}
+    unknown = sorted(set(fields) - names)
+    if unknown:
+        raise InputError(f"{config_type.__name__} has no field {', '.join(unknown)}; "
+                         f"its fields: {', '.join(sorted(names))}")
+    return fields
+
+
 def check_fields(config: Any) -> None:
     """Validate an RL config's fields by what their names say: learning rates > 0; sizes, steps and
     delays >= 1; discount, tau and expectile in (0, 1]; layer widths positive; every other

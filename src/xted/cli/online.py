@@ -71,7 +71,8 @@ def train(
 
 @app.command("evaluate")
 def evaluate_policy(
-    policy: Path = typer.Argument(..., help="Actor checkpoint (.msgpack)."),
+    policy: Path = typer.Argument(..., help="Actor checkpoint (.msgpack), or a saved policy's folder "
+                                  "(xted policy --save DIR: DIR/seed_N)."),
     env: str = typer.Option(..., "--env"),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: target)."),
     episodes: int = typer.Option(10, "--episodes", min=1),
@@ -80,9 +81,9 @@ def evaluate_policy(
 ) -> None:
     """Greedy return of a policy checkpoint in a domain."""
     from xted.rl.evaluation import evaluate
-    from xted.rl.policy_io import Actor
+    from xted.rl.policy_io import Policy
 
-    actor = Actor.load(policy)
+    actor = Policy.load(policy)
     domain = parse_domain(env, gap)
     result = evaluate(actor.act, domain, episodes, seed)
     summary = {"policy": str(policy), "domain": domain.name, "trained_in": actor.meta.get("domain"),

@@ -30,7 +30,9 @@ def policy(
     algo: str = typer.Option("iql", "--algo", help="iql, td3bc, bc or dara."),
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     sources: List[str] = typer.Option([], "--source", help="Source dataset mixed in (repeatable)."),
-    env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
+    env: Optional[str] = typer.Option(
+        None, "--env", help="halfcheetah or walker2d, to evaluate in (default: the target data's recorded env); "
+        "none: train without a simulator (needs --save)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: the target domain)."),
     steps: int = typer.Option(100_000, "--steps", min=1, help="Gradient steps per seed."),
     seeds: str = typer.Option("0", "--seeds", help="Comma-separated seeds, trained together."),
@@ -44,30 +46,65 @@ def policy(
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Train on data whose recorded env differs from --env."),
-    force: bool = typer.Option(False, "--force", help="Delete the previous results in --out and train every seed afresh."),
+    force: bool = typer.Option(False, "--force",
+                               help="Delete the previous results in --out and --save and train every seed afresh."),
+    save: Optional[Path] = typer.Option(
+        None, "--save", help="Folder to save each seed's trained policy in (DIR/seed_N: actor, config, observation "
+        "standardisation, data fingerprints); finished seeds are skipped."),
 ) -> None:
-    """Train an offline policy per seed (all seeds at once) and report normalised scores in the target env."""
+    """Train an offline policy per seed (all seeds at once); report normalised scores in the target
+    env, and with --save keep the policies (xted.load_policy, ``Policy.act``)."""
     from xted.data import load
     from xted.envs import check_same_env, dataset_env, parse_domain
     from xted.rl.offline_train import default_config, train_offline
 
     config = apply_overrides(default_config(algo), overrides)
     seed_list = parse_seeds(seeds)
-    domain = parse_domain(env, gap)
     target_data, source_data = load(target), [load(s) for s in sources]
+    env_name = _evaluation_env(env, dataset_env(target_data.metadata), gap, save)
+    domain = None if env_name is None else parse_domain(env_name, gap)
     for role, name, data in (("--target", target, target_data), *(("--source", n, d) for n, d in zip(sources, source_data))):
-        check_same_env(domain.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
-    if force and out is not None:
-        discard_run(out, ("seed_*.json",))
-    results = train_offline(config, target_data, source_data, domain, steps, seed_list,
-                            eval_every=eval_every, eval_episodes=eval_episodes, out_dir=out, s4rl_noise=s4rl_noise)
+        check_same_env(env_name, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
+    if force:
+        for folder, markers in ((out, ("seed_*.json",)), (save, ("seed_*/policy.msgpack",))):
+            if folder is not None:
+                discard_run(folder, markers)
+    results = train_offline(config, target_data, source_data, domain, steps, seed_list, eval_every=eval_every,
+                            eval_episodes=eval_episodes, out_dir=out, s4rl_noise=s4rl_noise, save_dir=save)
     scores = [r["final_score"] for r in results]
-    summary = {"algo": algo, "env": env, "domain": domain.name, "seeds": seed_list, "steps": steps,
-               "scores": scores, "best_scores": [r["best_score"] for r in results],
-               "mean": float(np.mean(scores)), "std": float(np.std(scores))}
+    evaluated = domain is not None
+    summary = {"algo": algo, "env": env_name, "domain": domain.name if evaluated else None, "seeds": seed_list,
+               "steps": steps, "scores": scores, "best_scores": [r["best_score"] for r in results],
+               "mean": float(np.mean(scores)) if evaluated else None,
+               "std": float(np.std(scores)) if evaluated else None,
+               "saved": None if save is None else [str(save / f"seed_{seed}") for seed in seed_list]}
     if as_json:
         typer.echo(json.dumps(summary))
         return
     for r in results:
-        typer.echo(f"seed {r['seed']}: final {r['final_score']:.1f}  best {r['best_score']:.1f}")
-    typer.echo(f"{algo} in {domain.name}: {summary['mean']:.1f} +- {summary['std']:.1f} over {len(scores)} seeds")
+        where = "" if save is None else f"  saved in {save / ('seed_' + str(r['seed']))}"
+        if evaluated:
+            typer.echo(f"seed {r['seed']}: final {r['final_score']:.1f}  best {r['best_score']:.1f}{where}")
+        else:
+            typer.echo(f"seed {r['seed']}: trained {steps} steps, not evaluated (no env){where}")
+    if evaluated:
+        typer.echo(f"{algo} in {domain.name}: {summary['mean']:.1f} +- {summary['std']:.1f} over {len(scores)} seeds")
+
+
+def _evaluation_env(env: str | None, recorded: str | None, gap: str | None, save: Path | None) -> str | None:
+    """The env to evaluate in: ``--env``, else the target data's recorded one; None for ``--env
+    none`` or data of no known env, which needs ``--save`` (else nothing would come of the run)."""
+    from xted.envs import ENV_IDS
+
+    if env is not None and env.strip().lower() == "none":
+        name = None
+    elif env is not None:
+        name = env
+    else:
+        name = recorded if recorded in ENV_IDS else None
+    if name is None and gap is not None:
+        raise InputError("--gap names a domain to evaluate in: give --env too")
+    if name is None and save is None:
+        why = "--env none" if env is not None else "the target data records no simulated env (halfcheetah, walker2d)"
+        raise InputError(f"{why}: the policy cannot be evaluated, so give --save DIR to keep it")
+    return name

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from xted.config import known_fields
 from xted.errors import InputError
 
 # Per-sample loss weightings by the signal-to-noise ratio of the sampled timestep (xted.diffusion.objective).
@@ -162,7 +163,7 @@ class PriorConfig(DenoiserConfig):
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PriorConfig:
-        return cls(**check_fields(cls, data))
+        return cls(**known_fields(cls, data))
 
 
 @dataclass(frozen=True)
@@ -215,15 +216,6 @@ class EditConfig:
     def noise_steps(self, num_timesteps: int) -> int:
         """``k = round(kappa * K)``."""
         return int(round(self.kappa * num_timesteps))
-
-
-def check_fields(config: type, fields: dict[str, Any]) -> dict[str, Any]:
-    """``fields`` if each names a field of the dataclass ``config``, else an InputError naming the unknown ones."""
-    names = {f.name for f in dataclasses.fields(config)}
-    unknown = sorted(set(fields) - names)
-    if unknown:
-        raise InputError(f"{config.__name__} has no field {', '.join(unknown)}; its fields: {', '.join(sorted(names))}")
-    return fields
 
 
 def _paper(state_dim: int, action_dim: int) -> PriorConfig:

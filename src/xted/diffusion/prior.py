@@ -14,8 +14,9 @@ import jax
 import numpy as np
 
 from xted.atomic import atomic_path
+from xted.config import known_fields
 from xted.data import Dataset, Normalizer
-from xted.diffusion.config import EditConfig, PriorConfig, check_fields
+from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser
 from xted.diffusion.schedule import Schedule, cosine_schedule
 from xted.errors import InputError
@@ -65,7 +66,7 @@ class Prior:
         ``fields`` set any other :class:`EditConfig` field (``temperature``, ``sampler``, ...)."""
         from xted.diffusion.editor import edit_dataset
 
-        config = EditConfig(kappa=kappa, seed=seed, **check_fields(EditConfig, fields))
+        config = EditConfig(kappa=kappa, seed=seed, **known_fields(EditConfig, fields))
         return edit_dataset(self, source, config, progress)[0]
 
 

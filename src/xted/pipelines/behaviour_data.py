@@ -24,7 +24,7 @@ from xted.data.shipped import policies_dir
 from xted.envs import Domain, normalized_score
 from xted.errors import InputError
 from xted.rl.collect import collect, uniform_policy
-from xted.rl.policy_io import Actor
+from xted.rl.policy_io import Policy
 from xted.rl.run_folder import actor_checkpoint, read_evals
 
 LEVELS = ("random", "medium", "medium-replay", "expert", "medium-expert", "source")
@@ -81,7 +81,7 @@ def select_checkpoints(evals: list[dict]) -> tuple[int, int]:
 
 
 def _policy_fn(path: Path):
-    actor = Actor.load(path)
+    actor = Policy.load(path)
     return actor, (lambda obs, rng: actor.act(obs, rng))
 
 
@@ -111,7 +111,7 @@ def _subset_episodes(arrays: dict[str, np.ndarray], transitions: int, seed: int)
 
 
 def _replay_prefix(replay: Path, medium: Path) -> dict[str, np.ndarray]:
-    step = Actor.load(medium).meta["step"]
+    step = Policy.load(medium).meta["step"]
     with np.load(replay) as buffer:
         arrays = {k: buffer[k][:step] for k in buffer.files}
     # The buffer is cut where the medium checkpoint was taken, always at an episode end.

@@ -13,10 +13,8 @@ from __future__ import annotations
 
 import math
 from functools import partial
-from typing import Sequence
 
 import flax
-import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -24,21 +22,7 @@ import optax
 from flax.training.train_state import TrainState
 
 from xted.rl.configs import IQLConfig
-from xted.nn import MLP
-from xted.rl.networks import LOG_STD_MAX, LOG_STD_MIN, Critic, ValueNet
-
-
-class GaussianPolicy(nn.Module):
-    """``__call__`` returns (tanh-squashed mean, state-independent log-std broadcast to the batch)."""
-
-    hidden: Sequence[int]
-    action_dim: int
-
-    @nn.compact
-    def __call__(self, obs):
-        mean = jnp.tanh(MLP(self.hidden, self.action_dim)(obs))
-        log_std = self.param("log_std", nn.initializers.zeros, (self.action_dim,))
-        return mean, jnp.broadcast_to(jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX), mean.shape)
+from xted.rl.networks import Critic, GaussianPolicy, ValueNet
 
 
 @flax.struct.dataclass

@@ -26,6 +26,20 @@ class TanhGaussianPolicy(nn.Module):
         return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
 
+class GaussianPolicy(nn.Module):
+    """IQL's locomotion actor: ``__call__`` returns (tanh-squashed mean, state-independent log-std
+    broadcast to the batch)."""
+
+    hidden: Sequence[int]
+    action_dim: int
+
+    @nn.compact
+    def __call__(self, obs):
+        mean = jnp.tanh(MLP(self.hidden, self.action_dim)(obs))
+        log_std = self.param("log_std", nn.initializers.zeros, (self.action_dim,))
+        return mean, jnp.broadcast_to(jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX), mean.shape)
+
+
 class DeterministicPolicy(nn.Module):
     """tanh-squashed deterministic action (TD3+BC, BC)."""
 

@@ -31,6 +31,7 @@ from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
 from xted.rl.evaluation import PolicyFn, evaluate
 from xted.rl.iql import IQLConfig, iql_act, iql_update, init_iql, locomotion_reward_scale
+from xted.rl.policy_io import POLICY_FILE, Policy
 from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
 
 AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig
@@ -43,14 +44,17 @@ class Algorithm(NamedTuple):
     init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state
     update: Callable[..., Any]  # (state, batch, config, step) -> (state, info); step: the update's index
     act: Callable[..., Any]  # (actor TrainState, standardised obs) -> actions
+    policy_kind: str  # the actor's kind in a saved policy (xted.rl.policy_io)
 
 
 _ALGORITHMS: dict[type, Algorithm] = {
-    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step: iql_update(state, batch, config), iql_act),
+    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step: iql_update(state, batch, config), iql_act,
+                         "gaussian"),
     TD3BCConfig: Algorithm(lambda rng, o, a, config, steps: init_td3bc(rng, o, a, config), td3bc_update,
-                           deterministic_act),
+                           deterministic_act, "deterministic"),
     BCConfig: Algorithm(lambda rng, o, a, config, steps: init_bc(rng, o, a, config),
-                        lambda state, batch, config, step: bc_update(state, batch), deterministic_act),
+                        lambda state, batch, config, step: bc_update(state, batch), deterministic_act,
+                        "deterministic"),
 }
 
 
@@ -175,8 +179,9 @@ def _segment_ends(steps: int, eval_every: int, chunk: int = 1000) -> list[int]:
     return sorted(ends)
 
 
-def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain, steps: int, seeds: Sequence[int],
-                  eval_every: int, eval_episodes: int, s4rl_noise: float, config: AlgoConfig) -> None:
+def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain | None, steps: int,
+                  seeds: Sequence[int], eval_every: int, eval_episodes: int, s4rl_noise: float,
+                  config: AlgoConfig, out_dir: str | Path | None, save_dir: str | Path | None) -> None:
     for name, value in (("steps", steps), ("eval_every", eval_every), ("eval_episodes", eval_episodes)):
         if value <= 0:
             raise InputError(f"{name} must be positive, got {value}")
@@ -186,21 +191,27 @@ def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain, s
         raise InputError(f"the S4RL noise std must be >= 0, got {s4rl_noise}")
     if isinstance(config, DARAConfig) and not sources:
         raise InputError("DARA corrects source rewards: give at least one source dataset")
-    env = make(domain)
-    dims = (env.observation_space.shape[0], env.action_space.shape[0])
-    env.close()
+    for name, folder in (("results", out_dir), ("policies", save_dir)):
+        if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
+            raise InputError(f"{folder} is not a folder: cannot keep {name} there")
+    if domain is None:
+        dims, where = (target.observation_dim, target.action_dim), "the target"
+    else:
+        env = make(domain)
+        dims, where = (env.observation_space.shape[0], env.action_space.shape[0]), domain.name
+        env.close()
     for i, data in enumerate([target, *sources]):
         if (data.observation_dim, data.action_dim) != dims:
             name = "target" if i == 0 else f"source {i - 1}"
             raise InputError(f"the {name} dataset has observation/action dims {data.observation_dim}/"
-                             f"{data.action_dim}; {domain.name} has {dims[0]}/{dims[1]}")
+                             f"{data.action_dim}; {where} has {dims[0]}/{dims[1]}")
 
 
 def train_offline(
     algo: str | AlgoConfig,
     target: Dataset,
     sources: Sequence[Dataset],
-    domain: Domain,
+    domain: Domain | None,
     steps: int,
     seeds: Sequence[int],
     eval_every: int = 10_000,
@@ -208,33 +219,64 @@ def train_offline(
     out_dir: str | Path | None = None,
     progress: bool = True,
     s4rl_noise: float = 0.0,
+    save_dir: str | Path | None = None,
 ) -> list[dict]:
     """Train ``algo`` on target + sources for every seed at once; evaluate in ``domain``.
 
-    Evaluates every ``eval_every`` steps and at the end. Returns one result per seed (in ``seeds``
-    order): ``final_score`` and ``best_score`` (normalised), the evaluations, and training speed.
-    With ``out_dir`` each seed's result is written to ``out_dir/seed_N.json`` when it finishes, and
-    a seed whose file exists is loaded instead of trained (a file of another run is an InputError).
+    Evaluates every ``eval_every`` steps and at the end; with ``domain`` None nothing is evaluated
+    (``final_score`` and ``best_score`` are None, ``evals`` empty). Returns one result per seed (in
+    ``seeds`` order): ``final_score`` and ``best_score`` (normalised), the evaluations, training
+    speed, and ``policy``, the trained :class:`~xted.rl.policy_io.Policy` (absent for a seed
+    resumed from ``out_dir`` alone, whose actor was not saved).
+
+    With ``out_dir`` each seed's result is written to ``out_dir/seed_N.json`` when it finishes; with
+    ``save_dir`` its policy to the folder ``save_dir/seed_N``. A seed is loaded instead of trained
+    when what was asked for is there (a result, and a policy where ``save_dir`` is given); files of
+    another run are an InputError.
     """
     config = default_config(algo) if isinstance(algo, str) else algo
     learner = learner_config(config)
     seeds = [int(s) for s in seeds]
-    _check_inputs(target, sources, domain, steps, seeds, eval_every, eval_episodes, s4rl_noise, config)
+    _check_inputs(target, sources, domain, steps, seeds, eval_every, eval_episodes, s4rl_noise, config, out_dir,
+                  save_dir)
     run = json.loads(json.dumps({
-        "algo": algorithm_name(config), "config": dataclasses.asdict(config), "domain": domain.name, "steps": steps,
+        "algo": algorithm_name(config), "config": dataclasses.asdict(config),
+        "domain": None if domain is None else domain.name, "steps": steps,
         "transitions": len(target) + sum(len(s) for s in sources),
         "data": [dataset.fingerprint() for dataset in (target, *sources)], "s4rl_noise": s4rl_noise,
         "eval_every": eval_every, "eval_episodes": eval_episodes,
     }))
-    done = {seed: _load_result(Path(out_dir), seed, run) for seed in seeds} if out_dir is not None else {}
-    todo = [seed for seed in seeds if done.get(seed) is None]
+    done = {seed: _load_seed(out_dir, save_dir, seed, run) for seed in seeds}
+    todo = [seed for seed in seeds if done[seed] is None]
     if todo:
         for result in _train_group(config, learner, target, sources, domain, todo, run, progress):
-            done[result["seed"]] = result
+            seed = result["seed"]
+            if save_dir is not None:
+                result["policy"].save(policy_folder(save_dir, seed))
             if out_dir is not None:
-                with atomic_path(Path(out_dir) / f"seed_{result['seed']}.json") as tmp:
-                    tmp.write_text(json.dumps(result, indent=2))
+                with atomic_path(Path(out_dir) / f"seed_{seed}.json") as tmp:
+                    tmp.write_text(json.dumps({k: v for k, v in result.items() if k != "policy"}, indent=2))
+            done[seed] = result
     return [done[seed] for seed in seeds]
+
+
+def policy_folder(save_dir: str | Path, seed: int) -> Path:
+    return Path(save_dir) / f"seed_{seed}"
+
+
+def _load_seed(out_dir: str | Path | None, save_dir: str | Path | None, seed: int, run: dict) -> dict | None:
+    """A finished seed's result (with its policy where ``save_dir`` is given), or None to train it."""
+    result = None if out_dir is None else _load_result(Path(out_dir), seed, run)
+    if save_dir is None:
+        return result
+    folder = policy_folder(save_dir, seed)
+    if not (folder / POLICY_FILE).exists():
+        return None
+    policy = Policy.load(folder)
+    check_same_run(folder, {k: policy.meta.get(k) for k in run}, run)
+    if result is None:
+        result = {**run, "seed": seed, **policy.meta["scores"]}
+    return {**result, "policy": policy}
 
 
 def _load_result(out_dir: Path, seed: int, run: dict) -> dict | None:
@@ -249,8 +291,16 @@ def _load_result(out_dir: Path, seed: int, run: dict) -> dict | None:
     return result
 
 
-def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources: Sequence[Dataset], domain: Domain,
-                 seeds: list[int], run: dict, progress: bool) -> list[dict]:
+def _policy(learner: Learner, actor_params, data: OfflineData, obs_dim: int, action_dim: int, meta: dict) -> Policy:
+    """A trained seed's actor as a :class:`Policy` that standardises observations as training did."""
+    return Policy(actor_params, {
+        **meta, "policy": _ALGORITHMS[type(learner)].policy_kind, "hidden": list(learner.hidden),
+        "obs_dim": obs_dim, "action_dim": action_dim,
+        "obs_mean": data.obs_mean.tolist(), "obs_std": data.obs_std.tolist()})
+
+
+def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources: Sequence[Dataset],
+                 domain: Domain | None, seeds: list[int], run: dict, progress: bool) -> list[dict]:
     steps, eval_every, s4rl_noise = run["steps"], run["eval_every"], run["s4rl_noise"]
     data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False))
     keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 3))(jnp.asarray(seeds))
@@ -264,6 +314,9 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
     device_data = {**{k: jnp.asarray(v) for k, v in data.arrays.items()}, "rewards": jnp.asarray(rewards)}
     states = init_seeds(learner, init_keys, target.observation_dim, target.action_dim, steps)
 
+    def actor(i: int):
+        return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)[i]), states.actor)
+
     evals: list[list[dict]] = [[] for _ in seeds]
     train_seconds, position = 0.0, 0
     bar = tqdm(total=steps, desc=f"{run['algo']} x{len(seeds)} seeds", unit="step", disable=not progress,
@@ -276,16 +329,21 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
         train_seconds += time.perf_counter() - started
         bar.update(end - position)
         position = end
-        if end % eval_every == 0 or end == steps:
+        if domain is not None and (end % eval_every == 0 or end == steps):
             for i, seed in enumerate(seeds):
-                actor = jax.tree.map(lambda x: jnp.asarray(np.asarray(x)[i]), states.actor)
-                result = evaluate(seed_policy(learner, actor, data.obs_mean, data.obs_std), domain,
+                result = evaluate(seed_policy(learner, actor(i), data.obs_mean, data.obs_std), domain,
                                   run["eval_episodes"], seed=seed * 1_000_003 + end)
                 evals[i].append({"step": end, "normalized_score": result["normalized_score"],
                                  "return_mean": result["return_mean"]})
             bar.set_postfix(score=f"{np.mean([e[-1]['normalized_score'] for e in evals]):.1f}")
     bar.close()
     rate = steps * len(seeds) / train_seconds  # updates per second over all seeds, compilation included
-    return [{**run, "seed": seed, "final_score": history[-1]["normalized_score"],
-             "best_score": max(e["normalized_score"] for e in history), "evals": history,
-             "updates_per_second": rate} for seed, history in zip(seeds, evals)]
+    results = []
+    for i, (seed, history) in enumerate(zip(seeds, evals)):
+        scores = {"final_score": history[-1]["normalized_score"] if history else None,
+                  "best_score": max(e["normalized_score"] for e in history) if history else None,
+                  "evals": history, "updates_per_second": rate}
+        meta = {**run, "seed": seed, "scores": scores}
+        results.append({**run, "seed": seed, **scores, "policy": _policy(
+            learner, actor(i).params, data, target.observation_dim, target.action_dim, meta)})
+    return results

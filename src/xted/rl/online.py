@@ -37,7 +37,7 @@ from xted.resume import resume_or_record
 from xted.rl.configs import OnlineRunConfig
 from xted.rl.run_folder import actor_checkpoint, read_evals, write_evals
 from xted.rl.evaluation import ROOT_PITCH, evaluate
-from xted.rl.policy_io import Actor, save_actor
+from xted.rl.policy_io import Policy, save_actor
 from xted.rl.sac import init_sac, sac_update
 from xted.rl.td3bc import init_td3bc, td3bc_update
 
@@ -132,7 +132,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
     bar = tqdm(total=config.total_steps, initial=step, desc=f"{config.algo.upper()} {domain.name}", unit="step",
                disable=not progress, smoothing=0.05)
     while step < config.total_steps:
-        actor = Actor(state.actor.params, actor_meta)
+        actor = Policy(state.actor.params, actor_meta)
         start, n = step, min(config.block, config.total_steps - step)
         # Fresh rows every block: the device may still be reading the last block's (zero-copy, async).
         rows = empty_buffer(config.block, obs_dim, action_dim)
@@ -214,7 +214,7 @@ def _checkpoint(run_dir: Path, state, buffer, step, episode, explore_rng, domain
     params = jax.device_get(state.actor.params)
     save_actor(actor_checkpoint(run_dir, step), params, {**actor_meta, "step": step})
     started = time.time()
-    result = evaluate(Actor(params, actor_meta).act, domain, config.eval_episodes, seed=10_000 + step)
+    result = evaluate(Policy(params, actor_meta).act, domain, config.eval_episodes, seed=10_000 + step)
     eval_seconds = time.time() - started
     with atomic_path(run_dir / "buffer.npz", suffix=".npz") as tmp:
         np.savez(tmp, **{k: np.asarray(v[:step]) for k, v in buffer.items()})

@@ -1,8 +1,13 @@
-"""Saving and loading actor checkpoints (params plus the metadata needed to rebuild them).
+"""Saving and loading policies: actor parameters plus the metadata needed to rebuild and use them.
 
-Two kinds of actor, named by ``meta["policy"]``: ``tanh_gaussian`` (SAC; the default for files
-written before the field existed) and ``deterministic`` (TD3, exploring with Gaussian noise of
-std ``meta["exploration_noise"]``).
+Three kinds of actor, named by ``meta["policy"]``: ``tanh_gaussian`` (SAC; the default for files
+written before the field existed), ``deterministic`` (TD3, TD3+BC and BC; TD3 explores with Gaussian
+noise of std ``meta["exploration_noise"]``) and ``gaussian`` (IQL: a tanh-squashed mean and a
+state-independent std). An offline policy also stores ``obs_mean`` and ``obs_std``, the
+standardisation of its training data, which it applies to every observation before acting.
+
+A policy saved with :meth:`Policy.save` is a folder: ``policy.msgpack`` (parameters and metadata,
+all that loading needs) and ``policy.json`` (the same metadata, for reading).
 """
 
 from __future__ import annotations
@@ -18,9 +23,10 @@ import numpy as np
 
 from xted.atomic import atomic_path
 from xted.errors import InputError
-from xted.rl.networks import DeterministicPolicy, TanhGaussianPolicy
+from xted.rl.networks import DeterministicPolicy, GaussianPolicy, TanhGaussianPolicy
 
-POLICY_KINDS = ("tanh_gaussian", "deterministic")
+POLICY_KINDS = ("tanh_gaussian", "deterministic", "gaussian")
+POLICY_FILE, POLICY_META_FILE = "policy.msgpack", "policy.json"
 
 
 def save_actor(path: str | Path, params, meta: dict) -> None:
@@ -30,7 +36,10 @@ def save_actor(path: str | Path, params, meta: dict) -> None:
 
 
 def load_actor(path: str | Path) -> tuple[dict, dict]:
+    """Parameters and metadata of a checkpoint file, or of a saved policy's folder."""
     path = Path(path)
+    if path.is_dir():
+        path = path / POLICY_FILE
     if not path.exists():
         raise InputError(f"policy checkpoint {path} does not exist")
     try:
@@ -43,12 +52,16 @@ def load_actor(path: str | Path) -> tuple[dict, dict]:
 @functools.lru_cache(maxsize=None)
 def _forward(kind: str, hidden: tuple[int, ...], action_dim: int):
     """One jitted forward per network shape, shared by every actor of that shape."""
-    module = (TanhGaussianPolicy if kind == "tanh_gaussian" else DeterministicPolicy)(hidden, action_dim)
+    module = {"tanh_gaussian": TanhGaussianPolicy, "deterministic": DeterministicPolicy,
+              "gaussian": GaussianPolicy}[kind](hidden, action_dim)
     return jax.jit(lambda params, obs: module.apply({"params": params}, obs))
 
 
-class Actor:
-    """A loaded actor: ``act(obs, rng)`` explores as it was trained to; ``act(obs)`` is greedy."""
+class Policy:
+    """A loaded policy: ``act(obs, rng)`` explores as it was trained to; ``act(obs)`` is greedy.
+
+    ``obs`` is one observation ``[obs_dim]`` or a batch ``[N, obs_dim]``; actions come back in the
+    same layout, in [-1, 1]."""
 
     def __init__(self, params, meta: dict):
         self.kind = meta.get("policy", "tanh_gaussian")
@@ -57,20 +70,51 @@ class Actor:
         self.params = params
         self.meta = meta
         self._forward = _forward(self.kind, tuple(meta["hidden"]), meta["action_dim"])
+        standardised = "obs_mean" in meta
+        self._obs_mean = np.asarray(meta["obs_mean"], np.float32) if standardised else None
+        self._obs_std = np.asarray(meta["obs_std"], np.float32) if standardised else None
 
     @classmethod
-    def load(cls, path: str | Path) -> "Actor":
+    def load(cls, path: str | Path) -> "Policy":
+        """A policy from a checkpoint file or a folder written by :meth:`save`."""
         return cls(*load_actor(path))
 
+    def save(self, folder: str | Path) -> Path:
+        """Write the policy to ``folder`` (``policy.msgpack`` and ``policy.json``); returns the folder."""
+        folder = Path(folder)
+        if folder.exists() and not folder.is_dir():
+            raise InputError(f"{folder} exists and is not a folder: cannot save a policy there")
+        folder.mkdir(parents=True, exist_ok=True)
+        save_actor(folder / POLICY_FILE, self.params, self.meta)
+        with atomic_path(folder / POLICY_META_FILE) as tmp:
+            tmp.write_text(json.dumps(self.meta, indent=2))
+        return folder
+
+    @property
+    def scores(self) -> dict | None:
+        """An offline policy's evaluation in training (``final_score``, ``best_score``, ``evals``;
+        scores None when it trained without a simulator); None for other checkpoints."""
+        return self.meta.get("scores")
+
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
-        out = self._forward(self.params, jnp.asarray(obs, jnp.float32))
+        obs = np.asarray(obs, np.float32)
+        if self._obs_mean is not None:
+            if obs.shape[-1:] != self._obs_mean.shape:
+                raise InputError(f"observation of shape {obs.shape}: this policy takes {len(self._obs_mean)} "
+                                 f"features (one observation, or a batch of them)")
+            obs = (obs - self._obs_mean) / self._obs_std
+        out = self._forward(self.params, jnp.asarray(obs))
         if self.kind == "deterministic":
             action = np.asarray(out)
-            if rng is None:
+            if rng is None or "exploration_noise" not in self.meta:
                 return action
             noise = self.meta["exploration_noise"] * rng.standard_normal(action.shape)
             return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
         mean, log_std = np.asarray(out[0]), np.asarray(out[1])
+        if self.kind == "gaussian":
+            if rng is None:
+                return mean
+            return np.clip(mean + np.exp(log_std) * rng.standard_normal(mean.shape), -1.0, 1.0).astype(np.float32)
         if rng is None:
             return np.tanh(mean)
         return np.tanh(mean + np.exp(log_std) * rng.standard_normal(mean.shape)).astype(np.float32)
