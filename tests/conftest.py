@@ -53,14 +53,16 @@ def build_dataset(
     )
 
 
-def first_steps(name: str, steps: int, episodes: int = 2) -> Dataset:
-    """The first ``steps`` steps of the first ``episodes`` episodes of a shipped dataset."""
+def first_steps(name: str, steps: int, episodes: int = 2, next_observations: bool = False) -> Dataset:
+    """The first ``steps`` steps of the first ``episodes`` episodes of a shipped dataset (with its
+    next observations if asked)."""
     data = load(name)
     rows = np.concatenate([np.arange(start, start + steps) for start, _ in data.episode_bounds()[:episodes]])
     timeouts = np.zeros(len(rows), bool)
     timeouts[steps - 1 :: steps] = True
     return Dataset(observations=data.observations[rows], actions=data.actions[rows], rewards=data.rewards[rows],
-                   terminals=np.zeros(len(rows), bool), timeouts=timeouts, metadata={"env": data.metadata["env"]})
+                   terminals=np.zeros(len(rows), bool), timeouts=timeouts, metadata={"env": data.metadata["env"]},
+                   next_observations=data.next_observations[rows] if next_observations else None)
 
 
 @pytest.fixture

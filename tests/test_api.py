@@ -12,9 +12,6 @@ from conftest import build_dataset
 import xted
 from xted.errors import InputError
 
-TINY_PRIOR = dict(width_override=8, state_blocks=1, action_blocks=1, reward_blocks=1, num_heads=2, cond_dim=16,
-                  horizon=4, num_timesteps=10, batch_size=16, warmup_steps=0, decay_steps=None)
-
 
 def test_import_xted_stays_light():
     code = "import sys, xted; xted.__all__; print(sorted(m for m in ('jax', 'flax', 'mujoco') if m in sys.modules))"
@@ -27,7 +24,7 @@ def test_train_edit_measure_through_the_public_names(tmp_path):
     np.savez(tmp_path / "target.npz", **{k: getattr(target, k) for k in
                                          ("observations", "actions", "rewards", "terminals", "timeouts")})
     loaded = xted.load_dataset(tmp_path / "target.npz")
-    prior = xted.train_prior(loaded, out=tmp_path / "prior", steps=3, progress=False, **TINY_PRIOR)
+    prior = xted.train_prior(loaded, out=tmp_path / "prior", steps=3, progress=False, preset="tiny")
     assert isinstance(prior, xted.Prior) and prior.step == 3 and prior.config.horizon == 4
     assert xted.load_prior(tmp_path / "prior").step == 3  # the folder, reloaded
     edited = prior.edit(source, kappa=0.5, seed=0)

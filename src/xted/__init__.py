@@ -1,8 +1,8 @@
 """xted: cross-domain trajectory editing with diffusion models.
 
-The public API (:mod:`xted.api`): ``load_dataset``, ``train_prior``, ``load_prior``, a prior's
-``edit``, ``measure_edit``, ``train_policy``, ``load_policy``; loaded on first use, so ``import
-xted`` stays light.
+The public API (:mod:`xted.api`): ``load_dataset``, ``save_dataset``, ``train_prior``,
+``load_prior``, a prior's ``edit``, ``measure_edit``, ``train_policy``, ``load_policy``; loaded on
+first use, so ``import xted`` stays light.
 """
 
 from xted.lazy import lazy_exports
@@ -10,7 +10,7 @@ from xted.lazy import lazy_exports
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "load_dataset": "api", "train_prior": "api", "load_prior": "api", "measure_edit": "api",
+    "load_dataset": "api", "save_dataset": "api", "train_prior": "api", "load_prior": "api", "measure_edit": "api",
     "train_policy": "api", "load_policy": "api",
     "Dataset": "data", "EditConfig": "diffusion", "PriorConfig": "diffusion", "Prior": "diffusion",
     "Policy": "rl.policy_io",

@@ -32,6 +32,14 @@ def load_dataset(source: str | Path) -> Dataset:
     return load(source)
 
 
+def save_dataset(dataset: Dataset, path: str | Path) -> Path:
+    """Write ``dataset`` to ``path`` (atomically), its format chosen by the path: ``.npz``, D4RL-style
+    ``.hdf5`` / ``.h5``, or a folder without a suffix for a Minari dataset; returns the path."""
+    from xted.data import save
+
+    return save(dataset, path).path
+
+
 def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cpu", steps: int = 20_000,
                 seed: int = 0, heldout_episodes: int = 0, progress: bool = True, **fields: Any):
     """Train (or resume, in ``out``) a diffusion prior on ``target`` and return it, loaded.
@@ -47,7 +55,8 @@ def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cp
 
     data = load_dataset(target) if isinstance(target, (str, Path)) else target
     data, _ = split_heldout(data, heldout_episodes)
-    config = make_preset(preset, data.observation_dim, data.action_dim, seed=seed, **known_fields(PriorConfig, fields))
+    config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards, seed=seed,
+                         **known_fields(PriorConfig, fields))
     return load_prior(train(data, out, config, steps, progress=progress))
 
 

@@ -29,6 +29,7 @@ from tqdm.auto import tqdm
 
 from xted.analysis.config import ProxyConfig
 from xted.data import Dataset
+from xted.data.dataset import REWARD_FREE
 from xted.envs.dynamics import DynamicsError
 from xted.errors import InputError
 from xted.nn import MLP
@@ -153,6 +154,7 @@ class RewardProxy:
 
 def fit_reward_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> RewardProxy:
     """Fit the reward proxy to ``target``'s transitions; the same seed gives the same model."""
+    target.require_rewards("a reward proxy", "relabel with a target dataset that records rewards")
     inputs = np.concatenate([target.observations, target.actions, target.next_observations_or_derived()], axis=1)
     model = fit_mlp(inputs, target.rewards[:, None], config, progress, desc="reward proxy")
     return RewardProxy(model, target.observation_dim)
@@ -161,5 +163,6 @@ def fit_reward_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progr
 def relabel_rewards(data: Dataset, proxy: RewardProxy) -> Dataset:
     """``data`` (a copy) with every reward given by ``proxy`` from its ``(s, a, s')``."""
     rewards = proxy.predict(data.observations, data.actions, data.next_observations_or_derived())
-    metadata = {**data.metadata, "rewards": "relabelled by a reward proxy fitted to the target"}
+    metadata = {**{k: v for k, v in data.metadata.items() if k != REWARD_FREE},
+                "rewards": "relabelled by a reward proxy fitted to the target"}
     return dataclasses.replace(data, rewards=rewards.astype(data.rewards.dtype), metadata=metadata)

@@ -14,10 +14,12 @@ from xted.envs.make import forward_velocity_index
 
 def simulator_measures(domain: Domain, data: Dataset) -> dict:
     """Simulator dynamics error (MAE, MSE, n, of those how many reach beyond the observation clip,
-    how many were excluded at it) and the recorded rewards' error (MAE, bias)."""
-    dynamics, rewards = dataset_dynamics_error(domain, data), reward_error(domain, data)
+    how many were excluded at it) and the recorded rewards' error (MAE, bias; None for reward-free data)."""
+    dynamics = dataset_dynamics_error(domain, data)
+    rewards = reward_error(domain, data) if data.has_rewards else None
     return {"mae": dynamics.mae, "mse": dynamics.mse, "n": dynamics.n, "beyond_clip": dynamics.beyond_clip,
-            "excluded_clipped": dynamics.excluded_clipped, "reward_mae": rewards.mae, "reward_bias": rewards.bias}
+            "excluded_clipped": dynamics.excluded_clipped, "reward_mae": rewards and rewards.mae,
+            "reward_bias": rewards and rewards.bias}
 
 
 def edit_report(domain: Domain | None, source: Dataset, edited: Dataset, proxy: DynamicsProxy | None = None) -> dict:

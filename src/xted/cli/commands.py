@@ -21,7 +21,8 @@ from xted.resume import discard_run
 def train(
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     out: Path = typer.Option(..., "--out", help="Prior folder; an existing one is resumed."),
-    preset: str = typer.Option("cpu", "--preset", help="cpu (fast, small) or paper (the paper's model)."),
+    preset: str = typer.Option("cpu", "--preset",
+                               help="cpu (fast, small), paper (the paper's model) or tiny (a smoke test)."),
     steps: int = typer.Option(20_000, "--steps", min=1, help="Total training steps."),
     seed: int = typer.Option(0, "--seed", min=0),
     checkpoint_every: int = typer.Option(1000, "--checkpoint-every", min=1),
@@ -36,7 +37,8 @@ def train(
     from xted.diffusion.training import train_prior
 
     data, _ = split_heldout(load(target), heldout_episodes)
-    config = apply_overrides(make_preset(preset, data.observation_dim, data.action_dim, seed=seed), overrides)
+    config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards, seed=seed)
+    config = apply_overrides(config, overrides)
     if force:
         discard_run(out, ("prior.json",))
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
@@ -45,7 +47,7 @@ def train(
 
 @app.command()
 def edit(
-    prior: Path = typer.Option(..., "--prior", help="Prior folder (xted train)."),
+    prior: str = typer.Option(..., "--prior", help="Prior folder (xted train) or a shipped prior's name."),
     source: str = typer.Option(..., "--source", help="Source dataset (path or shipped name)."),
     out: str = typer.Option(..., "--out", help="Edited dataset; the format follows the path."),
     kappa: float = typer.Option(EditConfig.kappa, "--kappa", min=0.0, max=1.0,
@@ -77,14 +79,15 @@ def edit(
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
     from xted.analysis import fit_reward_proxy, relabel_rewards
+    from xted.api import load_prior
     from xted.data import formats, load
     from xted.diffusion.editor import edit_dataset
-    from xted.diffusion.prior import load_prior
     from xted.envs import check_same_env, dataset_env
 
     formats.check_writable(formats.target(out), overwrite=force)
+    prior_model = load_prior(prior)
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
-                                              "--prior": prior})
+                                              "--prior": prior_model.path})
     config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, hold_actions=hold_actions,
                         guidance=guidance, sampler=sampler, sampler_steps=sampler_steps, temperature=temperature,
                         eta=eta, seed=seed)
@@ -95,7 +98,6 @@ def edit(
         raise InputError(f"--relabel-rewards {relabel_rewards_from} has {reward_data.observation_dim}-d observations "
                          f"and {reward_data.action_dim}-d actions; the source has {source_data.observation_dim} and "
                          f"{source_data.action_dim}")
-    prior_model = load_prior(prior)
     for role, name, data in (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data)):
         if data is not None:
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)

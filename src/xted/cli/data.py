@@ -111,8 +111,9 @@ def _readable(report: dict[str, Any]) -> str:
         f"transitions:       {report['transitions']}",
         f"observation_dim:   {report['observation_dim']}",
         f"action_dim:        {report['action_dim']}",
-        f"return:            mean {report['return_mean']:.3f}, std {report['return_std']:.3f}, "
-        f"min {report['return_min']:.3f}, max {report['return_max']:.3f}",
+        (f"return:            mean {report['return_mean']:.3f}, std {report['return_std']:.3f}, "
+         f"min {report['return_min']:.3f}, max {report['return_max']:.3f}" if report["rewards"]
+         else "return:            none (reward-free data)"),
         f"episode length:    mean {report['episode_length_mean']:.1f}, "
         f"min {report['episode_length_min']}, max {report['episode_length_max']}",
         f"episode ends:      {report['terminals']} terminals, {report['timeouts']} timeouts",

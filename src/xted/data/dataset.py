@@ -2,6 +2,10 @@
 
 An episode ends at a step whose ``terminals`` (the environment terminated) or ``timeouts``
 (the episode was cut short: time limit, end of collection) flag is set; never both.
+
+Reward-free data (demonstrations, a real robot's logs) is built with ``rewards=None``: it holds
+zero rewards and says so in ``metadata["reward_free"]``, which every reader of rewards checks
+(:attr:`Dataset.has_rewards`); files written from it omit the rewards.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import numpy as np
 
 from xted.errors import InputError
 
+REWARD_FREE = "reward_free"  # metadata key: the data records no rewards (its rewards are zeros)
+
 
 @dataclass(frozen=True, eq=False)
 class Dataset:
@@ -24,7 +30,7 @@ class Dataset:
 
     observations: np.ndarray
     actions: np.ndarray
-    rewards: np.ndarray
+    rewards: np.ndarray | None
     terminals: np.ndarray
     timeouts: np.ndarray
     next_observations: np.ndarray | None = None
@@ -32,14 +38,21 @@ class Dataset:
     metadata: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        observations = _float_array("observations", self.observations, ndim=2)
+        metadata = _json_roundtrip(self.metadata)
+        if self.rewards is None:
+            rewards = np.zeros(len(observations), np.float32)
+            metadata[REWARD_FREE] = True
+        else:
+            rewards = _float_array("rewards", self.rewards, ndim=1)
         converted = {
-            "observations": _float_array("observations", self.observations, ndim=2),
+            "observations": observations,
             "actions": _float_array("actions", self.actions, ndim=2),
-            "rewards": _float_array("rewards", self.rewards, ndim=1),
+            "rewards": rewards,
             "terminals": as_flags("terminals", self.terminals),
             "timeouts": as_flags("timeouts", self.timeouts),
             "extras": {str(k): np.asarray(v) for k, v in self.extras.items()},
-            "metadata": _json_roundtrip(self.metadata),
+            "metadata": metadata,
         }
         if self.next_observations is not None:
             converted["next_observations"] = _float_array("next_observations", self.next_observations, ndim=2)
@@ -67,6 +80,9 @@ class Dataset:
             raise InputError(f"terminals[{both[0]}] and timeouts[{both[0]}] are both true")
         if not (self.terminals[-1] or self.timeouts[-1]):
             raise InputError(f"the final step (index {n - 1}) ends no episode: terminals and timeouts false")
+        if not self.has_rewards and np.any(self.rewards != 0):
+            raise InputError(f"metadata[{REWARD_FREE!r}] says the data has no rewards, but rewards has nonzero "
+                             f"entries (index {int(np.flatnonzero(self.rewards)[0])})")
 
     # ----------------------------------------------------------------- shape
     def __len__(self) -> int:
@@ -79,6 +95,16 @@ class Dataset:
     @property
     def action_dim(self) -> int:
         return self.actions.shape[1]
+
+    @property
+    def has_rewards(self) -> bool:
+        """False for reward-free data (built with ``rewards=None``, or read from a file without them)."""
+        return not self.metadata.get(REWARD_FREE, False)
+
+    def require_rewards(self, what: str, remedy: str) -> None:
+        """InputError naming ``what`` needs rewards when this data has none, and the ``remedy``."""
+        if not self.has_rewards:
+            raise InputError(f"{what} needs rewards, and this data has none (reward-free); {remedy}")
 
     # -------------------------------------------------------------- episodes
     def episode_bounds(self) -> np.ndarray:
@@ -141,7 +167,7 @@ class Dataset:
         return Dataset(
             observations=cat("observations"),
             actions=cat("actions"),
-            rewards=cat("rewards"),
+            rewards=cat("rewards") if all(d.has_rewards for d in datasets) else None,
             terminals=cat("terminals"),
             timeouts=cat("timeouts"),
             next_observations=cat("next_observations") if has_next else None,
@@ -179,18 +205,24 @@ class Dataset:
         )
 
     def summary(self) -> dict[str, Any]:
-        """Counts, dimensions, return and length statistics, extras and metadata."""
-        returns = self.episode_returns()
+        """Counts, dimensions, return (None for reward-free data) and length statistics, extras and
+        metadata."""
+        returns = self.episode_returns() if self.has_rewards else None
         lengths = self.episode_lengths()
+
+        def stat(reduce) -> float | None:
+            return None if returns is None else float(reduce(returns))
+
         return {
             "episodes": self.num_episodes,
             "transitions": len(self),
             "observation_dim": self.observation_dim,
             "action_dim": self.action_dim,
-            "return_mean": float(returns.mean()),
-            "return_std": float(returns.std()),
-            "return_min": float(returns.min()),
-            "return_max": float(returns.max()),
+            "rewards": self.has_rewards,
+            "return_mean": stat(np.mean),
+            "return_std": stat(np.std),
+            "return_min": stat(np.min),
+            "return_max": stat(np.max),
             "episode_length_mean": float(lengths.mean()),
             "episode_length_min": int(lengths.min()),
             "episode_length_max": int(lengths.max()),

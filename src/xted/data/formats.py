@@ -15,7 +15,9 @@
   per-episode seeds, options and episode metadata are not read.
 * A bare name that is not a path is looked up among the shipped datasets.
 
-Files written by other tools may lack ``terminals`` or ``timeouts`` (taken as all false), end
+A file without ``rewards`` holds reward-free data (:attr:`Dataset.has_rewards` False), and
+reward-free data is written without them (Minari, which needs rewards, gets zeros and the
+metadata flag). Files written by other tools may lack ``terminals`` or ``timeouts`` (taken as all false), end
 in an unfinished episode (ended with a timeout), or flag a step as both (the terminal wins);
 each such repair is recorded in ``metadata["notes"]``.
 """
@@ -44,7 +46,7 @@ NPZ, HDF5, MINARI = "npz", "hdf5", "minari"
 MINARI_PREFIX = "minari:"
 _SUFFIXES = {".npz": NPZ, ".hdf5": HDF5, ".h5": HDF5}
 _FIELDS = ("observations", "actions", "rewards", "terminals", "timeouts", "next_observations")
-_REQUIRED = ("observations", "actions", "rewards")
+_REQUIRED = ("observations", "actions")  # no rewards: reward-free data
 _NPZ_EXTRAS = "extras/"
 _HDF5_EXTRAS = "infos"
 _MINARI_KEY = "xted"
@@ -204,7 +206,7 @@ def _from_arrays(
         return Dataset(
             observations=arrays["observations"],
             actions=arrays["actions"],
-            rewards=arrays["rewards"],
+            rewards=arrays.get("rewards"),
             terminals=arrays["terminals"],
             timeouts=arrays["timeouts"],
             next_observations=arrays.get("next_observations"),
@@ -217,10 +219,10 @@ def _from_arrays(
 
 def _repaired(arrays: dict[str, np.ndarray], notes: list[str]) -> dict[str, np.ndarray]:
     arrays = dict(arrays)
-    rewards = arrays["rewards"]
-    if rewards.ndim == 2 and rewards.shape[1] == 1:
-        arrays["rewards"] = rewards = rewards[:, 0]
-    n = len(rewards) if rewards.ndim else 0
+    rewards = arrays.get("rewards")
+    if rewards is not None and rewards.ndim == 2 and rewards.shape[1] == 1:
+        arrays["rewards"] = rewards[:, 0]
+    n = len(arrays["observations"]) if arrays["observations"].ndim else 0
     for key in ("terminals", "timeouts"):
         if key not in arrays:
             arrays[key] = np.zeros(n, dtype=bool)
@@ -263,7 +265,10 @@ def _json_object(text: Any, where: Path) -> dict[str, Any]:
 
 
 def _field_arrays(dataset: Dataset) -> dict[str, np.ndarray]:
+    """The arrays a file holds: reward-free data has no rewards, data without next observations none of those."""
     arrays = {name: getattr(dataset, name) for name in _FIELDS}
+    if not dataset.has_rewards:
+        del arrays["rewards"]
     return {k: v for k, v in arrays.items() if v is not None}
 
 

@@ -48,14 +48,15 @@ ARCHITECTURES = ("xted", "causal", "feature_concat", "temporal_concat", "inverse
 @dataclass(frozen=True)
 class DenoiserConfig:
     """Architecture. Stream width = ``width_override`` if set, else
-    ``max(min_width, round(width_multiplier * element_dim))`` ("joint", the FC token, has the
-    summed dims of the streams)."""
+    ``round(width_multiplier * element_dim)`` bounded to ``[min_width, max_width]`` ("joint", the FC
+    token, has the summed dims of the streams)."""
 
     state_dim: int
     action_dim: int
     use_reward: bool = True
     width_multiplier: float = 16
     min_width: int = 0
+    max_width: int | None = None
     width_override: int | None = None
     state_blocks: int = 2
     action_blocks: int = 2
@@ -91,7 +92,8 @@ class DenoiserConfig:
     def width(self, stream: str) -> int:
         if self.width_override is not None:
             return self.width_override
-        return max(self.min_width, round(self.width_multiplier * self.element_dim(stream)))
+        width = max(self.min_width, round(self.width_multiplier * self.element_dim(stream)))
+        return width if self.max_width is None else min(width, self.max_width)
 
     def heads(self, stream: str) -> int:
         return math.gcd(self.num_heads, self.width(stream))
@@ -143,6 +145,8 @@ class PriorConfig(DenoiserConfig):
              f"train_kappa_max must be in (0, 1] and cover at least one noise step, got {self.train_kappa_max}"),
             (self.architecture in ARCHITECTURES,
              f"architecture must be one of {list(ARCHITECTURES)}, got {self.architecture!r}"),
+            (self.max_width is None or self.max_width >= self.min_width,
+             f"max_width must be >= min_width, got {self.max_width} < {self.min_width}"),
             (min(map(self.denoiser.width, self.denoiser.streams)) >= 1, "every stream width must be >= 1"),
         ]
         for ok, message in checks:
@@ -229,23 +233,38 @@ def _paper(state_dim: int, action_dim: int) -> PriorConfig:
 
 
 def _cpu(state_dim: int, action_dim: int) -> PriorConfig:
-    """Small, fast configuration for a 2-core CPU: stream widths 4x the element's dim (at least 32),
-    one block per stream, batch 128 (about 3.4 GFLOP per step; BENCHMARKS.md has the curve that chose it)."""
+    """Small, fast configuration for a 2-core CPU: stream widths 4x the element's dim (at least 32,
+    at most 1024: the paper's 1x for its 1024-d embedding states), one block per stream, batch 128
+    (about 3.4 GFLOP per step on halfcheetah; BENCHMARKS.md has the curve that chose it)."""
     return PriorConfig(
-        state_dim=state_dim, action_dim=action_dim, width_multiplier=4, min_width=32, state_blocks=1,
-        action_blocks=1, reward_blocks=1, cond_dim=64, horizon=20, num_timesteps=200, batch_size=128, learning_rate=1e-3,
-        warmup_steps=500, decay_steps=50_000, return_condition=True,
+        state_dim=state_dim, action_dim=action_dim, width_multiplier=4, min_width=32, max_width=1024,
+        state_blocks=1, action_blocks=1, reward_blocks=1, cond_dim=64, horizon=20, num_timesteps=200, batch_size=128,
+        learning_rate=1e-3, warmup_steps=500, decay_steps=50_000, return_condition=True,
+    )
+
+
+def _tiny(state_dim: int, action_dim: int) -> PriorConfig:
+    """A smoke test of a pipeline, not a model: width 8, one block per stream, windows of 4, 10
+    noise steps; trains and edits in seconds (what the examples' tests run)."""
+    return PriorConfig(
+        state_dim=state_dim, action_dim=action_dim, width_override=8, state_blocks=1, action_blocks=1,
+        reward_blocks=1, num_heads=2, cond_dim=16, horizon=4, num_timesteps=10, batch_size=16,
     )
 
 
 def presets() -> dict[str, Callable[[int, int], PriorConfig]]:
     """Named configurations as functions of ``(state_dim, action_dim)``."""
-    return {"paper": _paper, "cpu": _cpu}
+    return {"paper": _paper, "cpu": _cpu, "tiny": _tiny}
 
 
-def preset(name: str, state_dim: int, action_dim: int, **overrides: Any) -> PriorConfig:
-    """``presets()[name](state_dim, action_dim)`` with fields replaced by ``overrides``."""
+def preset(name: str, state_dim: int, action_dim: int, rewards: bool = True, **overrides: Any) -> PriorConfig:
+    """``presets()[name](state_dim, action_dim)`` with fields replaced by ``overrides``; without
+    ``rewards`` (reward-free target data) the reward stream and return conditioning are off, as in
+    the paper's real-robot setting (its appendix: "the reward modules removed")."""
     table = presets()
     if name not in table:
         raise InputError(f"unknown prior preset {name!r}; expected one of {sorted(table)}")
-    return dataclasses.replace(table[name](state_dim, action_dim), **overrides)
+    config = table[name](state_dim, action_dim)
+    if not rewards:
+        config = dataclasses.replace(config, use_reward=False, return_condition=False)
+    return dataclasses.replace(config, **overrides)

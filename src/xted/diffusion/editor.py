@@ -250,6 +250,9 @@ def edit_dataset(
             f"source data has (state_dim, action_dim) = ({source.observation_dim}, {source.action_dim}), "
             f"the prior was trained on ({cfg.state_dim}, {cfg.action_dim})"
         )
+    if cfg.use_reward:
+        source.require_rewards("editing with this prior's reward stream",
+                               "edit it with a reward-free prior (trained on reward-free target data)")
     k = config.noise_steps(cfg.num_timesteps)
     metadata = {
         **source.metadata,

@@ -78,6 +78,10 @@ def train_prior(
             f"target data has (state_dim, action_dim) = ({target_dataset.observation_dim}, "
             f"{target_dataset.action_dim}), the config ({config.state_dim}, {config.action_dim})"
         )
+    if config.use_reward or config.return_condition:
+        target_dataset.require_rewards("a prior with a reward stream or return conditioning",
+                                       "train with use_reward=False and return_condition=False (the presets "
+                                       "turn both off for reward-free data)")
     normalizer = Normalizer.fit(target_dataset)
     sampler, info = training_windows(target_dataset, normalizer, config)
     meta = {

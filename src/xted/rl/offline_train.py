@@ -84,8 +84,11 @@ class OfflineData:
     target_size: int
 
 
-def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards: bool = False) -> OfflineData:
-    """Target then sources as flat arrays; with ``normalize_rewards`` IQL's locomotion reward scale."""
+def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards: bool = False,
+                 next_states: bool = True) -> OfflineData:
+    """Target then sources as flat arrays; with ``normalize_rewards`` IQL's locomotion reward scale.
+    Without ``next_states`` (behaviour cloning) the arrays hold no next observations, so data that
+    stores none trains too."""
     datasets = [target, *sources]
     observations = np.concatenate([d.observations for d in datasets])
     mean = observations.mean(axis=0)
@@ -97,20 +100,19 @@ def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards:
         "observations": (observations - mean) / std,
         "actions": np.concatenate([d.actions for d in datasets]),
         "rewards": rewards,
-        "next_observations": (np.concatenate([d.next_observations_or_derived() for d in datasets]) - mean) / std,
         "terminals": np.concatenate([d.terminals for d in datasets]),
     }
+    if next_states:
+        arrays["next_observations"] = (np.concatenate([d.next_observations_or_derived() for d in datasets]) - mean) / std
     arrays = {k: v.astype(np.float32) for k, v in arrays.items()}
     return OfflineData(arrays, mean.astype(np.float32), std.astype(np.float32), len(target))
 
 
 def s4rl_augment(batch: dict, key, std: float) -> dict:
-    """S4RL's Gaussian-noise augmentation: independent N(0, std^2) noise on s and s'."""
-    obs_key, next_key = jax.random.split(key)
-    return {**batch,
-            "observations": batch["observations"] + std * jax.random.normal(obs_key, batch["observations"].shape),
-            "next_observations": batch["next_observations"]
-            + std * jax.random.normal(next_key, batch["next_observations"].shape)}
+    """S4RL's Gaussian-noise augmentation: independent N(0, std^2) noise on s and s' (where the batch has s')."""
+    keys = dict(zip(("observations", "next_observations"), jax.random.split(key)))
+    return {**batch, **{name: batch[name] + std * jax.random.normal(keys[name], batch[name].shape)
+                        for name in keys if name in batch}}
 
 
 # --------------------------------------------------------------------------------------- training
@@ -189,6 +191,9 @@ def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain | 
         raise InputError(f"seeds must be distinct non-negative integers, got {list(seeds)}")
     if not s4rl_noise >= 0:
         raise InputError(f"the S4RL noise std must be >= 0, got {s4rl_noise}")
+    if not isinstance(config, BCConfig):
+        for data in (target, *sources):
+            data.require_rewards(algorithm_name(config), "train bc, which learns from the actions alone")
     if isinstance(config, DARAConfig) and not sources:
         raise InputError("DARA corrects source rewards: give at least one source dataset")
     for name, folder in (("results", out_dir), ("policies", save_dir)):
@@ -302,7 +307,8 @@ def _policy(learner: Learner, actor_params, data: OfflineData, obs_dim: int, act
 def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources: Sequence[Dataset],
                  domain: Domain | None, seeds: list[int], run: dict, progress: bool) -> list[dict]:
     steps, eval_every, s4rl_noise = run["steps"], run["eval_every"], run["s4rl_noise"]
-    data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False))
+    data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False),
+                        next_states=not isinstance(learner, BCConfig))
     keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 3))(jnp.asarray(seeds))
     init_keys, train_keys, dara_keys = keys[:, 0], keys[:, 1], keys[:, 2]
     rewards = np.broadcast_to(data.arrays["rewards"], (len(seeds), len(data.arrays["rewards"])))
