@@ -3,6 +3,11 @@ a matmul peak measured in the same run, and editing transitions/s (DDPM and DDIM
 
     python benchmarks/prior_speed.py --target halfcheetah-medium-replay --presets cpu paper \
         [--steps 20] [--edit-transitions 20000] [--set F=V ...]
+    python benchmarks/prior_speed.py --target embedding:1024x7 --presets cpu [--set horizon=5]
+
+``embedding:DxA``: reward-free random-walk states of D features and A-d actions in 100 episodes
+of 50 steps, the size of the paper's robot data (100 trajectories of 40-60 transitions of
+1024-d DecisionNCE embeddings); the prior is then reward-free, as the presets make it for such data.
 """
 
 from __future__ import annotations
@@ -16,13 +21,26 @@ import numpy as np
 
 from timing import matmul_peak, time_update
 from xted.config import apply_overrides
-from xted.data import load
+from xted.data import Dataset, load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.config import PriorConfig, preset
 from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.prior import Prior
 from xted.diffusion.training import training_windows
 from xted.data.normalizer import Normalizer
+
+
+def embedding_data(spec: str) -> Dataset:
+    state_dim, action_dim = (int(n) for n in spec.split("x"))
+    rng = np.random.default_rng(0)
+    episodes, steps = 100, 50
+    walk = np.cumsum(rng.normal(scale=0.1, size=(episodes, steps + 1, state_dim)), axis=1).astype(np.float32)
+    timeouts = np.zeros((episodes, steps), bool)
+    timeouts[:, -1] = True
+    return Dataset(observations=walk[:, :-1].reshape(-1, state_dim),
+                   next_observations=walk[:, 1:].reshape(-1, state_dim),
+                   actions=rng.uniform(-1, 1, (episodes * steps, action_dim)).astype(np.float32), rewards=None,
+                   terminals=np.zeros(episodes * steps, bool), timeouts=timeouts.reshape(-1))
 
 
 def step_cost(config: PriorConfig, data, repeats: int) -> dict:
@@ -63,11 +81,14 @@ def main() -> None:
     parser.add_argument("--edit-transitions", type=int, default=20_000)
     parser.add_argument("--set", dest="overrides", nargs="*", default=[])
     args = parser.parse_args()
-    data = load(args.target)
+    if args.target.startswith("embedding:"):
+        data = embedding_data(args.target.removeprefix("embedding:"))
+    else:
+        data = load(args.target)
     peak = matmul_peak()
     print(json.dumps({"matmul_peak_gflops": peak, "devices": str(jax.devices())}), flush=True)
     for name in args.presets:
-        config = preset(name, data.observation_dim, data.action_dim)
+        config = preset(name, data.observation_dim, data.action_dim, rewards=data.has_rewards)
         config = apply_overrides(config, args.overrides) if name == "cpu" else config
         cost = step_cost(config, data, args.steps)
         state = cost.pop("state")

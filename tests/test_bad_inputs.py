@@ -74,6 +74,19 @@ def _halfcheetah_like(ws: Path, name: str, steps: int = 5000, env: str = "HalfCh
     return str(ws / name)
 
 
+def _reward_free(ws: Path, name: str, obs_dim: int = 3, act_dim: int = 2) -> str:
+    data = build_dataset(lengths=(30, 30), obs_dim=obs_dim, act_dim=act_dim)
+    formats.save(dataclasses.replace(data, rewards=None, metadata={}), ws / name)
+    return str(ws / name)
+
+
+def _rewards_flagged_absent(ws: Path) -> str:
+    data = build_dataset(lengths=(30, 30))
+    arrays = {k: getattr(data, k) for k in ("observations", "actions", "rewards", "terminals", "timeouts")}
+    np.savez(ws / "flagged.npz", **arrays, metadata=np.array('{"reward_free": true}'))
+    return str(ws / "flagged.npz")
+
+
 def _hdf5_text(ws: Path) -> str:
     (ws / "notes.hdf5").write_text("these are my notes, not an HDF5 file\n")
     return str(ws / "notes.hdf5")
@@ -247,6 +260,17 @@ CASES = [
     Case("policy-save-is-a-file", "--save names a file",
          lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 100), *POLICY_QUICK,
                      "--save", _tiny(ws)], "not a folder"),
+    Case("policy-rl-without-rewards", "IQL on reward-free data",
+         lambda ws: ["policy", "--algo", "iql", "--target", _reward_free(ws, "demos.npz"), "--env", "none",
+                     "--save", str(ws / "p")], "iql needs rewards"),
+    Case("train-reward-stream-without-rewards", "a prior with a reward stream on reward-free data",
+         lambda ws: ["train", "--target", _reward_free(ws, "demos.npz"), "--out", str(ws / "p"),
+                     "--set", "use_reward=true"], "needs rewards"),
+    Case("edit-reward-prior-reward-free-source", "a reward-modelling prior editing a reward-free source",
+         lambda ws: ["edit", "--prior", HC_PRIOR, "--source", _reward_free(ws, "demos.npz", 17, 6),
+                     "--out", str(ws / "e.npz")], "needs rewards"),
+    Case("reward-free-flag-with-rewards", "metadata says reward-free, the file holds nonzero rewards",
+         lambda ws: ["data", "info", _rewards_flagged_absent(ws)], "nonzero entries"),
     Case("render-unknown-format", "render to a .avi file",
          lambda ws: ["render", "--env", "halfcheetah", _halfcheetah_like(ws, "s.npz", 100), "--out", str(ws / "v.avi")],
          ".avi"),

@@ -200,19 +200,26 @@ def test_report_rows_and_markdown(tmp_path, capsys):
                "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
                "--store", config.store, "--cache", config.cache]
     assert main(["bench", *options, "--report", "--json"]) == 0
-    rows = json.loads(capsys.readouterr().out)["rows"]
+    report = json.loads(capsys.readouterr().out)
+    rows = report["rows"]
     assert [row["column"] for row in rows] == ["Tgt", "Tgt+Src", "Tgt+Edited"]
     for row in rows:
         assert {"env", "target", "gap", "column", "algo", "mean", "std", "n_seeds"} <= set(row)
         assert (row["env"], row["target"], row["gap"], row["algo"]) == ("halfcheetah", "medium-replay", "thigh", "iql")
     assert (rows[0]["mean"], rows[0]["std"], rows[0]["n_seeds"]) == (15.0, 5.0, 2)
-    assert (rows[1]["mean"], rows[1]["n_seeds"]) == (None, 0)
-    assert (rows[2]["mean"], rows[2]["std"], rows[2]["n_seeds"]) == (30.0, 0.0, 1)
+    assert rows[0]["ci95"] == pytest.approx([15 - 63.53, 15 + 63.53], abs=0.01)  # t(0.975, 1) = 12.706
+    assert (rows[1]["mean"], rows[1]["n_seeds"], rows[1]["ci95"]) == (None, 0, None)
+    assert (rows[2]["mean"], rows[2]["std"], rows[2]["n_seeds"], rows[2]["ci95"]) == (30.0, 0.0, 1, None)
+    measures = {(row["measure"], row["column"]): row for row in report["aggregate"]}
+    assert set(measures) == {("IQM", "Tgt"), ("IQM", "Tgt+Edited"), ("P(improvement)", "Tgt+Edited > Tgt")}
+    assert measures["IQM", "Tgt"]["value"] == 15.0 and measures["IQM", "Tgt"]["tasks"] == 1
+    assert measures["P(improvement)", "Tgt+Edited > Tgt"]["value"] == 1.0  # 30 beats both seeds
 
     png = tmp_path / "table.png"
     assert main(["bench", *options, "--report", "--png", str(png)]) == 0
     table = capsys.readouterr().out
-    assert "| 15.0 ± 5.0 | — | 30.0 ± 0.0 (+100.0%) |" in table
+    assert "| 15.0 ± 5.0 [-48.5, 78.5] | — | 30.0 ± 0.0 (+100.0%) |" in table
+    assert "| iql | P(improvement) | Tgt+Edited > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
     assert png.is_file()
 
 
@@ -229,8 +236,8 @@ def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):
                "--cache", config.cache, "--report"]
     assert main(["bench", *options, "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["rows"]
-    assert row["curve"] == [{"step": 5, "mean": 1.5, "std": 0.5, "n_seeds": 2},
-                            {"step": 10, "mean": 4.0, "std": 1.0, "n_seeds": 2}]  # step 2: one seed only
+    assert [(p["step"], p["mean"], p["std"], p["n_seeds"]) for p in row["curve"]] == [
+        (5, 1.5, 0.5, 2), (10, 4.0, 1.0, 2)]  # step 2: one seed only
     assert main(["bench", *options, "--curves"]) == 0
     printed = capsys.readouterr().out
     assert "| env | target | gap | column | algo | 5 | 10 |" in printed

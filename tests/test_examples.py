@@ -80,3 +80,19 @@ def test_the_d3rlpy_hand_off_in_the_docs(tmp_path, monkeypatch):
     scope: dict = {"d3rlpy": d3rlpy}
     exec("import d3rlpy\n" + block, scope)
     assert len(scope["mdp"].episodes) == 2
+
+
+def test_the_readme_python_example(tmp_path, monkeypatch):
+    """README's Python block as written, with its step counts made tiny (the only changes)."""
+    readme = (Path(__file__).parent.parent / "README.md").read_text()
+    block = readme.split("```python\n", 1)[1].split("```", 1)[0]
+    tiny = {"steps=30_000": "steps=20, eval_episodes=1",
+            'env="halfcheetah")  # proxy': 'env="halfcheetah", proxy_steps=20)  # proxy'}
+    for written, quick in tiny.items():
+        assert block.count(written) == 1, written
+        block = block.replace(written, quick)
+    monkeypatch.chdir(tmp_path)
+    scope: dict = {}
+    exec(block, scope)
+    assert scope["action"].shape == (6,) and scope["report"]["simulator"]["edited"]["n"] == 20_000
+    assert (tmp_path / "runs" / "policy" / "policy.msgpack").exists()

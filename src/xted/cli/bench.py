@@ -110,7 +110,7 @@ def bench(
     from xted.pipelines.bench.edit_quality import markdown as edit_quality_markdown
     from xted.pipelines.bench.edit_quality import read_rows as edit_quality_rows
     from xted.pipelines.bench.grid import plan
-    from xted.pipelines.bench.report import curves_markdown, markdown, table_rows
+    from xted.pipelines.bench.report import aggregate, aggregate_markdown, curves_markdown, markdown, table_rows
 
     if png is not None:
         from xted.viz.plots import check_png_path
@@ -122,10 +122,11 @@ def bench(
     if edit_quality and not quality:
         raise InputError(f"--edit-quality: no rows of envs {_joined(config.envs)} and gaps {_joined(config.gaps)}")
     if as_json:
-        typer.echo(json.dumps({"rows": rows, **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
-                                                if edit_quality else {})}))
+        typer.echo(json.dumps({"rows": rows, "aggregate": aggregate(rows),
+                               **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
+                                  if edit_quality else {})}))
     else:
-        sections = [markdown(rows), curves_markdown(rows) if curves else "",
+        sections = [markdown(rows), aggregate_markdown(rows), curves_markdown(rows) if curves else "",
                     edit_quality_markdown(quality) if quality else ""]
         typer.echo("\n\n".join(section for section in sections if section))
     if png is not None:

@@ -1,6 +1,8 @@
 """The table from stored results, nothing recomputed: one row per env x target x gap x column x
-algo (mean and std of the final normalised score over the seeds found, and the learning curve of
-those seeds), and its markdown with each mixed column's gain against Tgt as the paper prints it."""
+algo (mean, std and 95% t-interval of the final normalised score over the seeds found, and the
+learning curve of those seeds), its markdown with each mixed column's gain against Tgt as the
+paper prints it, and the aggregate over tasks (IQM per column, the probability that Tgt+Edited
+improves on Tgt and on Tgt+Src; :mod:`xted.analysis.stats`)."""
 
 from __future__ import annotations
 
@@ -8,8 +10,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from xted.analysis.stats import improvement_interval, iqm_interval, t_interval
 from xted.pipelines.bench import store
-from xted.pipelines.bench.config import TGT
+from xted.pipelines.bench.config import TGT, TGT_EDITED, TGT_SRC
 from xted.pipelines.bench.grid import Grid
 
 MISSING = "—"
@@ -47,10 +50,46 @@ def task_rows(env: str, target: str, gap: str, columns: Sequence[str], store: st
 
 
 def score_summary(scores: Sequence[float]) -> dict:
-    """Mean and std (over seeds, ddof 0) of the final scores; None for none."""
+    """Mean and std (over seeds, ddof 0) of the final scores and the mean's 95% t-interval
+    (``ci95``; None below two seeds); None for none."""
     if not scores:
-        return {"mean": None, "std": None, "n_seeds": 0}
-    return {"mean": float(np.mean(scores)), "std": float(np.std(scores)), "n_seeds": len(scores)}
+        return {"mean": None, "std": None, "ci95": None, "n_seeds": 0}
+    return {"mean": float(np.mean(scores)), "std": float(np.std(scores)), "ci95": t_interval(scores),
+            "n_seeds": len(scores)}
+
+
+# Aggregates over tasks: Tgt+Edited against each baseline, as the paper's claim reads.
+IMPROVEMENTS = ((TGT_EDITED, TGT), (TGT_EDITED, TGT_SRC))
+
+
+def aggregate(rows: list[dict]) -> list[dict]:
+    """Per algo: each column's IQM over all (task, seed) scores, and P(Tgt+Edited > baseline) over
+    the tasks (env, target, gap) where both were run; each with its stratified-bootstrap 95% interval."""
+    out = []
+    for algo in dict.fromkeys(row["algo"] for row in rows):
+        scores = {}
+        for row in rows:
+            if row["algo"] == algo and row["scores"]:
+                scores.setdefault(row["column"], {})[(row["env"], row["target"], row["gap"])] = row["scores"]
+        for column, tasks in scores.items():
+            out.append({"algo": algo, "measure": "IQM", "column": column, **iqm_interval(list(tasks.values()))})
+        for better, baseline in IMPROVEMENTS:
+            shared = [task for task in scores.get(better, {}) if task in scores.get(baseline, {})]
+            if shared:
+                out.append({"algo": algo, "measure": "P(improvement)", "column": f"{better} > {baseline}",
+                            **improvement_interval([scores[better][t] for t in shared],
+                                                   [scores[baseline][t] for t in shared])})
+    return out
+
+
+def aggregate_markdown(rows: list[dict]) -> str:
+    """The aggregate block: one line per algo, measure and column."""
+    out = ["| algo | measure | column | value | 95% interval | tasks |", "|---|---|---|---|---|---|"]
+    for row in aggregate(rows):
+        low, high = row["ci95"]
+        out.append(f"| {row['algo']} | {row['measure']} | {row['column']} | {row['value']:.2f} | "
+                   f"[{low:.2f}, {high:.2f}] | {row['tasks']} |")
+    return "\n".join(out)
 
 
 def gain(value: float | None, baseline: float | None) -> str:
@@ -61,7 +100,8 @@ def gain(value: float | None, baseline: float | None) -> str:
 
 
 def markdown(rows: list[dict]) -> str:
-    """Columns side by side per env, target, gap and algo; a Total line per algo (sums of means)."""
+    """Columns side by side per env, target, gap and algo (mean ± std over seeds [95% t-interval]);
+    a Total line per algo (sums of means)."""
     columns = list(dict.fromkeys(row["column"] for row in rows))
     lines: dict[tuple, dict[str, dict]] = {}
     for row in rows:
@@ -77,6 +117,8 @@ def markdown(rows: list[dict]) -> str:
                 cells.append(MISSING)
                 continue
             shown = f"{row['mean']:.1f} ± {row['std']:.1f}"
+            if row["ci95"] is not None:
+                shown += f" [{row['ci95'][0]:.1f}, {row['ci95'][1]:.1f}]"
             cells.append(shown + (gain(row["mean"], baseline) if column.startswith(TGT + "+") else ""))
         out.append("| " + " | ".join([env, target, gap, algo, *cells]) + " |")
     for algo in dict.fromkeys(row["algo"] for row in rows):
