@@ -68,9 +68,10 @@ def run_quietly(config):
 def test_unchanged_cells_are_skipped_and_changed_inputs_recompute_exactly_their_cells(tmp_path, fake, monkeypatch):
     config = tiny_config(tmp_path)
     first = run_quietly(config)
-    # 2 gaps x (Src, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA) + Tgt once, x 2 seeds; 2 edits, 2 oracles
-    assert len(first) == (2 * 5 + 1) * 2 + 4
-    assert len(fake.calls) == 11 and all(seeds == [0, 1] for seeds in fake.calls)  # seeds trained together
+    # 2 gaps x (Src, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA, Tgt+Edited DARA) + Tgt once, x 2 seeds;
+    # 2 edits, 2 oracles
+    assert len(first) == (2 * 6 + 1) * 2 + 4
+    assert len(fake.calls) == 13 and all(seeds == [0, 1] for seeds in fake.calls)  # seeds trained together
 
     monkeypatch.setattr(cells, "train_offline", refuse_training)
     assert run_quietly(config) == []
@@ -79,7 +80,8 @@ def test_unchanged_cells_are_skipped_and_changed_inputs_recompute_exactly_their_
     recomputed = run_quietly(dataclasses.replace(config, kappa=0.3))
     edits = [name for name in recomputed if name.startswith("edit-")]
     learners = [name for name in recomputed if name not in edits]
-    assert len(edits) == 2 and len(learners) == 4 and all("-tgt+edited-" in name for name in learners)
+    assert len(edits) == 2 and len(learners) == 8 and all("-tgt+edited-" in name for name in learners)
+    assert sum("-tgt+edited-dara-" in name for name in learners) == 4  # DARA on the edit: the paper's Table 2
 
     real_load = grid.load
 
@@ -89,10 +91,10 @@ def test_unchanged_cells_are_skipped_and_changed_inputs_recompute_exactly_their_
 
     monkeypatch.setattr(grid, "load", other_gravity_data)
     recomputed = run_quietly(dataclasses.replace(config, kappa=0.3))
-    assert len(recomputed) == 5 * 2 + 2 and all("gravity" in name for name in recomputed)
+    assert len(recomputed) == 6 * 2 + 2 and all("gravity" in name for name in recomputed)
 
     recomputed = run_quietly(dataclasses.replace(config, kappa=0.3, seeds=(0, 1, 2)))
-    assert len(recomputed) == (2 * 5 + 1) and all("seed2" in name for name in recomputed)
+    assert len(recomputed) == (2 * 6 + 1) and all("seed2" in name for name in recomputed)
     assert fake.calls[-1] == [2]
 
 

@@ -201,7 +201,7 @@ def curves_figure(runs: list[RunCurves]) -> Figure:
 
 _ALGO_NAMES = {"iql": "IQL", "td3bc": "TD3+BC", "bc": "BC", "dara": "DARA"}
 _COLUMN_COLORS = {"Src": "tab:gray", "Tgt": "tab:purple", "Tgt+Src": "tab:olive", "Tgt+Edited": "tab:blue",
-                  "Tgt+Oracle": "tab:green", "Tgt+Src DARA": "tab:orange"}
+                  "Tgt+Oracle": "tab:green", "Tgt+Src DARA": "tab:orange", "Tgt+Edited DARA": "tab:cyan"}
 
 
 def table_figure(rows: list[dict]) -> Figure:

@@ -7,9 +7,11 @@ import dataclasses
 from xted.errors import InputError
 
 # What a learner trains on, besides the target data it is evaluated against.
-SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA = (
-    "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA")
-COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA)
+SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA = (
+    "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA", "Tgt+Edited DARA")
+COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA)
+DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA)  # DARA's reward correction on the source's share: the paper's Table 2
+EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA)
 DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
 
 

@@ -34,9 +34,12 @@ from xted.envs.make import observation_velocity_clip
 from xted.errors import InputError
 from xted.pipelines.bench.config import (
     DARA_BACKBONE,
+    DARA_COLUMNS,
+    EDITED_COLUMNS,
     SRC,
     TGT,
     TGT_EDITED,
+    TGT_EDITED_DARA,
     TGT_ORACLE,
     TGT_SRC,
     TGT_SRC_DARA,
@@ -267,7 +270,7 @@ def plan(config: BenchConfig) -> Grid:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
-            if TGT_EDITED in config.columns:
+            if set(EDITED_COLUMNS) & set(config.columns):
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
             for gap in config.gaps:
                 source = f"{env}-{gap}"
@@ -276,15 +279,16 @@ def plan(config: BenchConfig) -> Grid:
                     TGT_EDITED: None if prior is None else (target, data_cell("edit", env, gap, target_level, prior)),
                     TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
                 }
+                trainings[TGT_EDITED_DARA] = trainings[TGT_EDITED]
                 for algo in config.algos:
                     learner, dara = algo_configs(config, algo)
                     for column in config.columns:
-                        if column == TGT_SRC_DARA and dara is None:
+                        if column in DARA_COLUMNS and dara is None:
                             continue
                         training = trainings[column]
                         cells = []
                         for seed in config.seeds if training is not None else ():
-                            algo_config = dara if column == TGT_SRC_DARA else learner
+                            algo_config = dara if column in DARA_COLUMNS else learner
                             inputs = {"kind": "learner", "algo": algorithm_name(algo_config),
                                       "config": dataclasses.asdict(algo_config), "domain": env,
                                       "data": [fingerprint(ref) for ref in training], "steps": config.steps,
