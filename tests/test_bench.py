@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import sys
 
 import numpy as np
@@ -96,6 +97,57 @@ def test_unchanged_cells_are_skipped_and_changed_inputs_recompute_exactly_their_
     recomputed = run_quietly(dataclasses.replace(config, kappa=0.3, seeds=(0, 1, 2)))
     assert len(recomputed) == (2 * 6 + 1) and all("seed2" in name for name in recomputed)
     assert fake.calls[-1] == [2]
+
+
+def test_a_second_process_skips_claimed_groups_and_waits_for_claimed_data(tmp_path, fake, monkeypatch):
+    import socket
+
+    from xted.pipelines.bench import claims
+
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt", "Tgt+Edited"))
+    tgt_group, edited_group = run.pending(plan(config))
+    other = {"host": socket.gethostname(), "pid": os.getppid(), "since": 0.0}  # a live process, not this one
+    held = claims.claim_path(config.store, run.group_claim(tgt_group))
+    held.parent.mkdir(parents=True)
+    held.write_text(json.dumps(other))
+    messages = []
+    computed = run_bench(config, progress=False, echo=messages.append)
+    assert not any("-tgt-iql-" in name for name in computed) and any("-tgt+edited-" in name for name in computed)
+    assert any("another process is training it" in message for message in messages)
+    held.unlink()  # the other process ended without storing them: a rerun trains exactly that group
+    assert sorted(run_quietly(config)) == sorted(cell.name for cell in tgt_group)
+
+    # A data cell another process is making: wait, then (it stopped without a result) make it here.
+    config = tiny_config(tmp_path, gaps=("gravity",), columns=("Tgt+Edited",))
+    (group,) = run.pending(plan(config))
+    edit = group[0].data_cell
+    held = claims.claim_path(config.store, edit.name)
+    held.write_text(json.dumps(other))
+    waits = []
+    monkeypatch.setattr(claims.time, "sleep", lambda seconds: (waits.append(seconds), held.unlink()))
+    computed = run_quietly(config)
+    assert waits == [5.0] and edit.name in computed and not list(held.parent.iterdir())  # no claim left behind
+
+
+def test_claims_are_exclusive_and_stale_ones_are_taken_over(tmp_path):
+    import socket
+    import subprocess
+
+    from xted.pipelines.bench import claims
+
+    with claims.claim(tmp_path, "cell") as first:
+        with claims.claim(tmp_path, "cell") as second:
+            assert first and not second
+    with claims.claim(tmp_path, "cell") as again:
+        assert again  # released on exit
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    claims.claim_path(tmp_path, "cell").write_text(json.dumps(
+        {"host": socket.gethostname(), "pid": int(gone.stdout), "since": 0.0}))
+    with claims.claim(tmp_path, "cell") as taken:
+        assert taken  # its holder is not running
+    claims.claim_path(tmp_path, "cell").write_text(json.dumps({"host": "elsewhere", "pid": 1, "since": 0.0}))
+    with claims.claim(tmp_path, "cell") as honoured:
+        assert not honoured  # another host's process cannot be checked: honoured
 
 
 def test_learner_results_record_the_edited_data(tmp_path, fake):

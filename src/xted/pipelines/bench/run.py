@@ -5,11 +5,14 @@ The pieces here are shared by both executors: ``pending`` (what is left), ``data
 cell from the cache or made now), ``group_records`` (train one group of seeds; what the store
 keeps of each) and ``store_records``. The local executor runs the groups one after another in
 this process; ``ray_executor`` runs the same functions as Ray tasks and writes what they return.
+The local executor claims each group and data cell before computing it (:mod:`claims`), so a
+second process on the same store skips the groups the first is training and waits for its data.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -18,7 +21,7 @@ from tqdm.auto import tqdm
 
 from xted.data import Dataset, load, save, split_heldout
 from xted.diffusion.training import train_prior
-from xted.pipelines.bench import cells, store
+from xted.pipelines.bench import cells, claims, store
 from xted.pipelines.bench.config import BenchConfig, RayConfig
 from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, PriorCell, plan
 
@@ -110,6 +113,14 @@ def data_of(grid: Grid, cell: DataCell, work: Work = Work(), progress: bool = Fa
     data = cached_data(grid, cell)
     if data is not None:
         return data, []
+    with claims.claim(grid.config.store, cell.name) as mine:
+        if mine:
+            return _make_data(grid, cell, work, progress)
+    claims.wait_for_release(grid.config.store, cell.name)  # another process makes it: use its result
+    return data_of(grid, cell, work, progress)
+
+
+def _make_data(grid: Grid, cell: DataCell, work: Work, progress: bool) -> tuple[Dataset, list[str]]:
     computed = [cell.prior_cell.name] if cell.prior_cell is not None and prior_of(grid, cell.prior_cell, progress) else []
     data, seconds = make_data(cell, grid.datasets[cell.source], work.make_data)
     keep_data(grid.config, cell, data, seconds)
@@ -146,28 +157,48 @@ def group_label(group: Sequence[LearnerCell]) -> str:
     return f"{first.env} {first.name.rsplit('-seed', 1)[0]}"
 
 
-def run_local(grid: Grid, groups: list[list[LearnerCell]], progress: bool, work: Work) -> list[str]:
-    """One group after another in this process, each after the data it reads."""
-    made: dict[str, Dataset] = {}
+def group_claim(group: Sequence[LearnerCell]) -> str:
+    """The claim's name of a group: its label and a digest of its cells' keys."""
+    digest = hashlib.sha256("".join(sorted(cell.key for cell in group)).encode()).hexdigest()[:12]
+    return f"{group_label(group).replace(' ', '-')}-{digest}"
+
+
+def run_local(grid: Grid, groups: list[list[LearnerCell]], progress: bool, work: Work,
+              echo: Callable[[str], None] = print) -> list[str]:
+    """One group after another in this process, each after the data it reads; a group another
+    process has claimed is skipped, one it finished meanwhile too."""
     computed: list[str] = []
     bar = tqdm(total=len(grid.learners), initial=len(grid.learners) - sum(map(len, groups)), desc="bench cells",
                unit="cell", disable=not progress, smoothing=0.0)
+    made: dict[str, Dataset] = {}
     for group in groups:
-        bar.set_postfix_str(f"running {len(group)} ({group_label(group)}), "
-                            f"{bar.total - bar.n - len(group)} left after them")
-        training = []
-        for ref in group[0].training:
-            if isinstance(ref, DataCell):
-                if ref.key not in made:
-                    made[ref.key], fresh = data_of(grid, ref, work, progress)
-                    computed += fresh
-                training.append(made[ref.key])
-            else:
-                training.append(grid.datasets[ref])
-        computed += store_records(grid.config, group, group_records(group, training, work, progress))
+        with claims.claim(grid.config.store, group_claim(group)) as mine:
+            if not mine:
+                echo(f"bench: skipped {group_label(group)}: another process is training it")
+            elif any(store.read_result(grid.config.store, cell) is None for cell in group):
+                bar.set_postfix_str(f"running {len(group)} ({group_label(group)}), "
+                                    f"{bar.total - bar.n - len(group)} left after them")
+                computed += _run_group(grid, group, made, work, progress)
         bar.update(len(group))
     bar.close()
     return computed
+
+
+def _run_group(grid: Grid, group: list[LearnerCell], made: dict[str, Dataset], work: Work,
+               progress: bool) -> list[str]:
+    """Train one group after the data it reads (made now where no other group made it); the names
+    of the cells computed."""
+    computed: list[str] = []
+    training = []
+    for ref in group[0].training:
+        if isinstance(ref, DataCell):
+            if ref.key not in made:
+                made[ref.key], fresh = data_of(grid, ref, work, progress)
+                computed += fresh
+            training.append(made[ref.key])
+        else:
+            training.append(grid.datasets[ref])
+    return computed + store_records(grid.config, group, group_records(group, training, work, progress))
 
 
 def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], None] = print,
@@ -186,5 +217,5 @@ def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], 
     echo(f"bench: {len(grid.learners)} learner cells, {len(grid.learners) - todo} done, {todo} to train "
          f"in {len(groups)} groups of seeds{where}")
     if ray is None:
-        return run_local(grid, groups, progress, work)
+        return run_local(grid, groups, progress, work, echo)
     return ray_executor.run_on_ray(grid, groups, ray, progress, work, echo)
