@@ -79,6 +79,10 @@ def test_save_policies_and_resume_from_them(halfcheetah, tmp_path, capsys, monke
     np.testing.assert_allclose(policy.act(obs[3]), policy.act(obs)[3], atol=1e-6)
     with pytest.raises(InputError, match="takes 17 features"):
         policy.act(obs[:, :5])
+    capsys.readouterr()
+    assert main(["online", "evaluate", str(save_dir / "seed_1"), "--env", "halfcheetah", "--episodes", "1",
+                 "--json"]) == 0  # the saved policy, deployed in the simulator
+    assert json.loads(capsys.readouterr().out)["domain"] == "halfcheetah"
 
     monkeypatch.setattr(xted.rl.offline_train, "_train_group", lambda *a: pytest.fail("saved seeds were retrained"))
     assert main(args) == 0

@@ -19,7 +19,8 @@ LOSS_WEIGHTINGS = ("uniform", "min_snr")
 
 STREAMS = ("state", "action", "reward")
 
-# Cross-attention wiring: (updated stream, streams it attends to), paper main text Eq. 2-3.
+# Cross-attention wiring: (updated stream, streams it attends to), xTED Eq. 7 (states <-> actions) and Eq. 8
+# (rewards query states and actions).
 # State and action exchange information both ways; the reward stream queries the concatenation
 # (along the token axis, 2H keys) of state and action, and nothing attends to the reward stream,
 # so rewards never feed back into states or actions. All cross blocks read the self-attended

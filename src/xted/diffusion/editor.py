@@ -113,7 +113,7 @@ def _predict_noise(params: Any, plan: _Plan, x: dict[str, jnp.ndarray], t: jnp.n
         jnp.concatenate([returns, returns]),
         jnp.concatenate([jnp.zeros(b, bool), jnp.ones(b, bool)]),
     )
-    return {s: e[b:] + plan.guidance * (e[:b] - e[b:]) for s, e in both.items()}
+    return {s: e[b:] + plan.guidance * (e[:b] - e[b:]) for s, e in both.items()}  # xTED Eq. 13 (appendix)
 
 
 def _noise(keys: jnp.ndarray, path: tuple[Any, ...], like: jnp.ndarray) -> jnp.ndarray:

@@ -98,7 +98,7 @@ def loss_fn(
     weight = LOSS_WEIGHTS[config.loss_weighting](abar / (1 - abar))
     metrics, total = {}, 0.0
     for s, e in zip(streams, eps):
-        se = jnp.sum(jnp.square(e - noise[s]), axis=-1) * mask
+        se = jnp.sum(jnp.square(e - noise[s]), axis=-1) * mask  # xTED Eq. 5 (Eq. 12 with returns); Ho et al. Eq. 14
         metrics[f"mse_{s}"] = jnp.sum(se) / (jnp.sum(mask) * e.shape[-1])
         total = total + jnp.sum(weight[:, None] * se)
     dims = sum(config.denoiser.element_dim(s) for s in streams)

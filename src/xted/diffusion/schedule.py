@@ -63,7 +63,7 @@ def _per_sample(values: jnp.ndarray, t: jnp.ndarray, like: jnp.ndarray) -> jnp.n
 
 
 def q_sample(schedule: Schedule, x0: jnp.ndarray, t: jnp.ndarray, noise: jnp.ndarray) -> jnp.ndarray:
-    """Sample ``x_t ~ q(x_t | x_0)``."""
+    """Sample ``x_t ~ q(x_t | x_0)`` (xTED Eq. 2; Ho et al. 2020, Eq. 4)."""
     abar = _per_sample(schedule.alphas_cumprod, t, x0)
     return jnp.sqrt(abar) * x0 + jnp.sqrt(1 - abar) * noise
 
@@ -71,7 +71,7 @@ def q_sample(schedule: Schedule, x0: jnp.ndarray, t: jnp.ndarray, noise: jnp.nda
 def predict_x0(
     schedule: Schedule, x_t: jnp.ndarray, t: jnp.ndarray, eps: jnp.ndarray, clip: float | None = None
 ) -> jnp.ndarray:
-    """``x_0`` implied by the predicted noise, optionally clipped to ``[-clip, clip]``."""
+    """``x_0`` implied by the predicted noise (Ho et al. 2020, Eq. 15), optionally clipped to ``[-clip, clip]``."""
     abar = _per_sample(schedule.alphas_cumprod, t, x_t)
     x0 = (x_t - jnp.sqrt(1 - abar) * eps) / jnp.sqrt(abar)
     return x0 if clip is None else jnp.clip(x0, -clip, clip)

@@ -64,7 +64,7 @@ def _target_q(state: IQLState, batch):
 
 def value_loss(value_params, state: IQLState, batch, config: IQLConfig):
     v = state.value.apply_fn({"params": value_params}, batch["observations"])
-    loss = expectile_loss(_target_q(state, batch) - v, config.expectile).mean()
+    loss = expectile_loss(_target_q(state, batch) - v, config.expectile).mean()  # IQL (Kostrikov et al.) Eq. 5
     return loss, {"value_loss": loss, "v": v.mean()}
 
 
@@ -72,13 +72,13 @@ def actor_loss(actor_params, state: IQLState, batch, config: IQLConfig):
     advantage = _target_q(state, batch) - state.value.apply_fn({"params": state.value.params}, batch["observations"])
     weights = jnp.minimum(jnp.exp(config.temperature * advantage), config.max_weight)
     mean, log_std = state.actor.apply_fn({"params": actor_params}, batch["observations"])
-    loss = -(weights * gaussian_log_prob(mean, log_std, batch["actions"])).mean()
+    loss = -(weights * gaussian_log_prob(mean, log_std, batch["actions"])).mean()  # IQL Eq. 7 (AWR)
     return loss, {"actor_loss": loss, "advantage": advantage.mean()}
 
 
 def critic_loss(critic_params, state: IQLState, batch, config: IQLConfig):
     next_v = state.value.apply_fn({"params": state.value.params}, batch["next_observations"])
-    target = batch["rewards"] + config.discount * (1.0 - batch["terminals"]) * next_v
+    target = batch["rewards"] + config.discount * (1.0 - batch["terminals"]) * next_v  # IQL Eq. 6
     q = state.critic.apply_fn({"params": critic_params}, batch["observations"], batch["actions"])
     loss = ((q - target) ** 2).mean(axis=-1).sum()
     return loss, {"critic_loss": loss, "q": q.mean()}

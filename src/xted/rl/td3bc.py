@@ -61,9 +61,9 @@ def actor_loss(actor_params, state: TD3BCState, batch, config: TD3BCConfig):
     q = state.critic.apply_fn({"params": state.critic.params}, batch["observations"], pi)[0]
     if not config.behaviour_cloning:
         return -q.mean(), {"actor_loss": -q.mean(), "bc_loss": jnp.zeros(())}
-    lmbda = config.alpha / jax.lax.stop_gradient(jnp.abs(q).mean())
+    lmbda = config.alpha / jax.lax.stop_gradient(jnp.abs(q).mean())  # TD3+BC (Fujimoto & Gu) Eq. 5
     bc = ((pi - batch["actions"]) ** 2).mean()
-    loss = -lmbda * q.mean() + bc
+    loss = -lmbda * q.mean() + bc  # TD3+BC Eq. 3
     return loss, {"actor_loss": loss, "bc_loss": bc}
 
 
