@@ -329,7 +329,7 @@ def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, caps
     assert "met by 1 of 1 rows" in printed and "met by 1 of 2 rows" in printed
     rows.write_text('{"env": "halfcheetah"}\n')
     assert main([*options, "--edit-quality", str(rows)]) == 2
-    assert "quality.jsonl:1: not an edit-quality row (no gap, kappa" in capsys.readouterr().err
+    assert "quality.jsonl:1: a row of benchmarks/edit_quality.py --out needs gap, kappa" in capsys.readouterr().err
     assert main([*options[:-1], "--edit-quality", str(rows)]) == 2
 
 

@@ -17,7 +17,7 @@ LAYERS = {
     "viz": 4,
     "api": 4,  # the module xted.api: the public names over layers 1-3
 }
-CORE_MODULES = {"__init__", "errors", "atomic", "config", "lazy", "nn", "resume"}
+CORE_MODULES = {"__init__", "errors", "atomic", "config", "jsonfiles", "lazy", "nn", "resume"}
 
 
 def component(module: str) -> str:

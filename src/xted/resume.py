@@ -12,6 +12,7 @@ from typing import Any
 
 from xted.atomic import atomic_path
 from xted.errors import InputError
+from xted.jsonfiles import read_json
 
 
 def as_json(value: Any) -> Any:
@@ -44,11 +45,7 @@ def resume_or_record(path: str | Path, fingerprint: Mapping) -> None:
     """Check ``fingerprint`` against the JSON file ``path`` if it exists, else write it there."""
     path = Path(path)
     if path.exists():
-        try:
-            recorded = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as err:
-            raise InputError(f"{path}: unreadable run record ({err})") from None
-        check_same_run(path.parent, recorded, fingerprint)
+        check_same_run(path.parent, read_json(path, "unreadable run record"), fingerprint)
         return
     with atomic_path(path, ".json") as tmp:
         tmp.write_text(json.dumps(as_json(fingerprint), indent=1))

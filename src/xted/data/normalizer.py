@@ -17,6 +17,7 @@ import numpy as np
 from xted.atomic import atomic_path
 from xted.data.dataset import Dataset
 from xted.errors import InputError
+from xted.jsonfiles import read_json
 
 FIELDS = ("observations", "actions", "rewards")
 _ALIASES = {"next_observations": "observations"}
@@ -89,10 +90,7 @@ class Normalizer:
     @classmethod
     def load(cls, path: str | os.PathLike) -> Normalizer:
         path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as err:
-            raise InputError(f"{path}: not a readable normalizer file ({err})") from None
+        data = read_json(path, "not a readable normalizer file")
         try:
             return cls.from_dict(data)
         except InputError as err:

@@ -20,15 +20,13 @@ from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser
 from xted.diffusion.schedule import Schedule, cosine_schedule
 from xted.errors import InputError
+from xted.jsonfiles import read_json
 
 FORMAT = "xted-prior/1"
 
 
 def read_prior_json(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise InputError(f"{path}: not a readable prior file ({err})") from None
+    data = read_json(path, "not a readable prior file")
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(f"{path}: not an xted prior (expected format {FORMAT!r})")
     return data

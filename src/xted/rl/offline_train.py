@@ -26,6 +26,7 @@ from xted.atomic import atomic_path
 from xted.data import Dataset
 from xted.envs import Domain, make
 from xted.errors import InputError
+from xted.jsonfiles import read_json
 from xted.resume import check_same_run
 from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
@@ -288,10 +289,7 @@ def _load_result(out_dir: Path, seed: int, run: dict) -> dict | None:
     path = out_dir / f"seed_{seed}.json"
     if not path.exists():
         return None
-    try:
-        result = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise InputError(f"{path}: unreadable result ({err}); remove it to retrain seed {seed}") from None
+    result = read_json(path, "unreadable result", f"remove it to retrain seed {seed}")
     check_same_run(path, {k: result.get(k) for k in run}, run)
     return result
 

@@ -18,32 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from xted.errors import InputError
+from xted.jsonfiles import read_json_rows
 
 EDIT_QUALITY_FIELDS = ("gap", "kappa", "sim_source", "sim_edited", "floor")
 BENCH_FIELDS = ("env", "target", "gap", "column", "algo", "mean", "std", "n_seeds")
 RUN_KINDS = ("prior", "online", "offline")
-
-
-def read_json_rows(path: str | Path, fields: tuple[str, ...], what: str) -> list[dict]:
-    """The JSON-object lines of ``path`` that ``what`` wrote, each holding ``fields``."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file (expected {what})")
-    rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
-        if not line.lstrip().startswith("{"):
-            continue
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError as err:
-            raise InputError(f"{path}:{number}: not a JSON object ({err.msg})") from None
-        missing = [field for field in fields if field not in row]
-        if missing:
-            raise InputError(f"{path}:{number}: a row of {what} needs {', '.join(missing)}")
-        rows.append(row)
-    if not rows:
-        raise InputError(f"{path}: no rows of {what} (JSON objects, one per line)")
-    return rows
 
 
 def read_edit_quality(path: str | Path) -> list[dict]:

@@ -5,12 +5,11 @@ bench's edit targets."""
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
 from xted.diffusion.config import EditConfig
-from xted.errors import InputError
+from xted.jsonfiles import read_json_rows
 
 NEEDED = ("env", "gap", "kappa", "sim_source", "sim_edited", "proxy_source", "proxy_edited", "floor", "content")
 
@@ -39,22 +38,7 @@ TARGETS = {
 
 def read_rows(paths: Sequence[Path]) -> list[dict]:
     """Every row of the given JSON-lines files, in order; a missing file or malformed row is an InputError."""
-    rows = []
-    for path in paths:
-        if not Path(path).is_file():
-            raise InputError(f"--edit-quality {path}: no such file (rows come from benchmarks/edit_quality.py --out)")
-        for number, line in enumerate(Path(path).read_text().splitlines(), start=1):
-            if not line.strip():
-                continue
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError as err:
-                raise InputError(f"{path}:{number}: not JSON ({err.msg})") from None
-            missing = [key for key in NEEDED if not isinstance(row, dict) or key not in row]
-            if missing:
-                raise InputError(f"{path}:{number}: not an edit-quality row (no {', '.join(missing)})")
-            rows.append(row)
-    return rows
+    return [row for path in paths for row in read_json_rows(path, NEEDED, "benchmarks/edit_quality.py --out")]
 
 
 def edit_label(row: dict) -> str:

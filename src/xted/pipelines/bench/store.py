@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 from xted.atomic import atomic_path
-from xted.errors import InputError
+from xted.jsonfiles import read_json
 from xted.pipelines.bench.grid import DataCell, LearnerCell
 
 Cell = LearnerCell | DataCell
@@ -28,10 +28,7 @@ def read_result(store: str | Path, cell: Cell) -> dict | None:
     path = result_path(store, cell)
     if not path.is_file():
         return None
-    try:
-        result = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise InputError(f"{path}: unreadable cell result ({err}); remove it to recompute the cell") from None
+    result = read_json(path, "unreadable cell result", "remove it to recompute the cell")
     return result if isinstance(result, dict) and result.get("key") == cell.key else None
 
 
