@@ -18,6 +18,7 @@ demo: $(STAMP)
 	$(VENV)/bin/xted demo
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks examples
 	$(PY) -m pytest
 
 clean:

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from xted.analysis import ProxyConfig, edit_report, fit_proxy
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import load, split_heldout
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.prior import load_prior
@@ -66,9 +66,10 @@ def main() -> None:
 
     resolution_heldout = proxy_resolution(heldout)
     print(f"proxy's own simulator MAE on held-out target states: {resolution_heldout:.3f}")
-    print("| gap | kappa | sim MAE source -> edited (ratio) | proxy MAE source -> edited (ratio) | proxy's sim MAE on source states "
-          "| low-pass diff matched / mismatched | low-freq magnitude diff matched / mismatched "
-          "| fwd-velocity corr matched / mismatched | floor sim (seeds) / proxy | edited next states clipped into the observation space | edit time |")
+    print("| gap | kappa | sim MAE source -> edited (ratio) | proxy MAE source -> edited (ratio) "
+          "| proxy's sim MAE on source states | low-pass diff matched / mismatched "
+          "| low-freq magnitude diff matched / mismatched | fwd-velocity corr matched / mismatched "
+          "| floor sim (seeds) / proxy | edited next states clipped into the observation space | edit time |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
     resolution_sources = {gap: proxy_resolution(d) for gap, d in sources.items()}
@@ -99,7 +100,8 @@ def main() -> None:
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
             }
             m, mm = content["matched"], content["mismatched"]
-            print(f"| {gap} | {kappa} T={temperature} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} ({row['sim_edited'] / row['sim_source']:.2f}) "
+            print(f"| {gap} | {kappa} T={temperature} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} "
+                  f"({row['sim_edited'] / row['sim_source']:.2f}) "
                   f"| {row['proxy_source']:.3f} -> {row['proxy_edited']:.3f} ({row['proxy_edited'] / row['proxy_source']:.2f}) "
                   f"| {row['proxy_resolution_source']:.3f} "
                   f"| {m['low_pass_difference']:.2f} / {mm['low_pass_difference']:.2f} "

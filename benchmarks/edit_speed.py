@@ -14,7 +14,7 @@ import argparse
 import dataclasses
 import statistics
 
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.prior import load_prior

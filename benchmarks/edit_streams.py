@@ -39,7 +39,7 @@ def mix(source: Dataset, edited: Dataset, variant: str, clip: bool = True) -> Da
     states = edited if picks[0] == "e" else source
     return dataclasses.replace(
         source,
-        observations=states.observations, next_observations=states.next_observations_or_derived(),
+        observations=states.observations, next_observations=states.require_next_observations(),
         actions=(np.clip(edited.actions, low, high) if clip else edited.actions) if picks[1] == "e" else source.actions,
         rewards=(edited if picks[2] == "e" else source).rewards, extras={},
     )

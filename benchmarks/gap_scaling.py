@@ -16,7 +16,7 @@ import argparse
 import dataclasses
 
 from xted.analysis import content_similarity
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import Dataset
 from xted.data.shipped import policies_dir
 from xted.diffusion.editor import EditConfig, edit_dataset

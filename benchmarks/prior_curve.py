@@ -15,7 +15,7 @@ import csv
 import json
 from pathlib import Path
 
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.data import split_heldout

@@ -25,7 +25,7 @@ import jax
 import numpy as np
 
 from timing import median_seconds
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import load
 from xted.data.normalizer import Normalizer
 from xted.diffusion.config import preset

@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 from timing import matmul_peak, time_update
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import Dataset, load
 from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.diffusion.config import PriorConfig, preset

@@ -23,7 +23,7 @@ def main() -> None:
     print(f"{'dataset':>48s}  fwd velocity  pitch diff/velocity corr  actions outside [-1, 1]")
     for name in sys.argv[1:]:
         data = load(name)
-        following = data.next_observations_or_derived()
+        following = data.require_next_observations()
         pitch_rate = (following[:, PITCH] - data.observations[:, PITCH]) / DT
         corr = np.corrcoef(pitch_rate, following[:, PITCH_VELOCITY])[0, 1]
         outside = np.mean(np.abs(data.actions) > 1.0)

@@ -29,7 +29,7 @@ def main() -> None:
 
     kept = xted.measure_edit(source, edited)["content"]["matched"]
     print("content the edit kept (source vs edited episode): " + ", ".join(f"{k} {v:.3f}" for k, v in kept.items()))
-    policy = xted.train_policy("bc", target, sources=[edited], steps=args.policy_steps, lr=1e-4)
+    policy = xted.train_policy("bc", target, sources=[edited], steps=args.policy_steps, learning_rate=1e-4)
     print(f"BC policy saved in {policy.save(f'{args.out}/policy')}")
 
 

@@ -58,7 +58,7 @@ def test_save_policies_and_resume_from_them(halfcheetah, tmp_path, capsys, monke
     from xted.api import load_policy
     from xted.data import load
     from xted.rl.offline_train import seed_policy
-    from xted.rl.configs import BCConfig
+    from xted.rl.config import BCConfig
 
     save_dir = tmp_path / "policies"
     args = ["policy", "--algo", "bc", "--target", str(halfcheetah), "--env", "halfcheetah", "--steps", "30",

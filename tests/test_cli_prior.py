@@ -84,7 +84,7 @@ def test_edit_cli_refuses_mismatched_dims(files, capsys):
     save(other, files / "wide.npz")
     rc = main(["edit", "--prior", str(files / "prior"), "--source", str(files / "wide.npz"), "--out",
                str(files / "x.npz")])
-    assert rc == 2 and "dim" in capsys.readouterr().err
+    assert rc == 2 and "4-d observations" in capsys.readouterr().err
     assert not (files / "x.npz").exists()
 
 

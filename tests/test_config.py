@@ -2,7 +2,7 @@ import dataclasses
 
 import pytest
 
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.errors import InputError
 
 

@@ -110,11 +110,11 @@ def test_with_metadata_copies(tiny_dataset):
     assert updated.observations is tiny_dataset.observations
 
 
-def test_next_observations_or_derived(tiny_dataset):
-    assert tiny_dataset.next_observations_or_derived() is tiny_dataset.next_observations
+def test_require_next_observations(tiny_dataset):
+    assert tiny_dataset.require_next_observations() is tiny_dataset.next_observations
     bare = Dataset(**{**_fields(tiny_dataset), "next_observations": None})
     with pytest.raises(InputError, match="index 3"):
-        bare.next_observations_or_derived()
+        bare.require_next_observations()
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

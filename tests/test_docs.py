@@ -24,3 +24,10 @@ def test_the_readme_stays_a_landing_page():
     assert len(readme.splitlines()) <= 150
     openings = re.findall(r"^```(\w*)$", readme, flags=re.M)[::2]  # each block's opening fence
     assert openings[:2] == ["", "python"]  # the quick start's commands, then the Python example
+
+
+def test_the_cli_reference_is_current():
+    from xted.cli.reference import reference
+
+    assert (ROOT / "docs" / "cli.md").read_text() == reference(), (
+        "docs/cli.md is stale: python -m xted.cli.reference docs/cli.md")

@@ -1,7 +1,8 @@
-"""The package's layers import only downward: core (errors, atomic, config, lazy, nn, resume) -> data ->
-envs -> diffusion | rl | analysis -> pipelines | viz | api (the public Python API) -> cli. Modules of one layer may import their own
-package, never a sibling package of the same layer (diffusion, rl and analysis stay independent
-of each other, and so do pipelines and viz)."""
+"""The package's layers import only downward: core (errors, atomic, fields and its old name config,
+jsonfiles, lazy, nn, resume) -> data -> envs -> diffusion | rl | analysis -> pipelines | viz | api
+(the public Python API) -> cli. Modules of one layer may import their own package, never a
+sibling package of the same layer (diffusion, rl and analysis stay independent of each other, and
+so do pipelines and viz)."""
 
 import ast
 import subprocess
@@ -17,7 +18,7 @@ LAYERS = {
     "viz": 4,
     "api": 4,  # the module xted.api: the public names over layers 1-3
 }
-CORE_MODULES = {"__init__", "errors", "atomic", "config", "jsonfiles", "lazy", "nn", "resume"}
+CORE_MODULES = {"__init__", "errors", "atomic", "config", "fields", "jsonfiles", "lazy", "nn", "resume"}
 
 
 def component(module: str) -> str:
@@ -68,7 +69,7 @@ def test_editing_does_not_load_the_training_stack():
 
 def test_the_cli_and_the_configs_load_without_jax():
     """`xted --help` stays fast: the CLI takes its defaults from plain-Python config modules."""
-    code = ("import sys, xted.cli.main, xted.diffusion.config, xted.rl.configs, xted.analysis.config, xted.viz.config; "
+    code = ("import sys, xted.cli.main, xted.diffusion.config, xted.rl.config, xted.analysis.config, xted.viz.config; "
             "print(sorted(m for m in ('jax', 'flax', 'optax') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

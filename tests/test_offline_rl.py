@@ -18,7 +18,7 @@ from xted.rl.td3bc import TD3BCConfig
 TINY = {
     "iql": IQLConfig(hidden=(32, 32), batch_size=64, actor_lr=1e-3, critic_lr=1e-3, value_lr=1e-3),
     "td3bc": TD3BCConfig(hidden=(32, 32), batch_size=64, actor_lr=1e-3, critic_lr=1e-3),
-    "bc": BCConfig(hidden=(32, 32), batch_size=64, lr=1e-3),
+    "bc": BCConfig(hidden=(32, 32), batch_size=64, learning_rate=1e-3),
 }
 LOSSES = {"iql": ("value_loss", "critic_loss", "actor_loss"), "td3bc": ("critic_loss", "actor_loss"),
           "bc": ("bc_loss",)}

@@ -8,7 +8,7 @@ import pytest
 from xted.cli.main import main
 from xted.envs import parse_domain
 from xted.errors import InputError
-from xted.rl.configs import ONLINE_ALGORITHM_NAMES
+from xted.rl.config import ONLINE_ALGORITHM_NAMES
 from xted.rl.online import ONLINE_ALGORITHMS, OnlineRunConfig, actor_checkpoint, read_evals, train_online
 from xted.rl.policy_io import Policy
 from xted.rl.sac import SACConfig, init_sac, sac_update
@@ -73,20 +73,19 @@ def test_resume_refuses_other_settings_and_a_shorter_run(tmp_path):
     config = OnlineRunConfig(algo="sac", total_steps=1000, start_steps=500, checkpoint_every=1000, eval_episodes=1, sac=TINY)
     train_online(domain, tmp_path / "run", config, progress=False)
     with pytest.raises(InputError, match="start_steps: 500 -> 400"):
-        train_online(domain, tmp_path / "run", OnlineRunConfig(algo="sac", total_steps=2000, start_steps=400, checkpoint_every=1000,
-                                                               eval_episodes=1, sac=TINY), progress=False)
+        train_online(domain, tmp_path / "run", dataclasses.replace(config, total_steps=2000, start_steps=400),
+                     progress=False)
     with pytest.raises(InputError, match="domain"):
         train_online(parse_domain("halfcheetah", "gravity"), tmp_path / "run", config, progress=False)
     with pytest.raises(InputError, match="beyond --steps 500"):
-        train_online(domain, tmp_path / "run", OnlineRunConfig(algo="sac", total_steps=500, start_steps=500, checkpoint_every=1000,
-                                                               eval_episodes=1, sac=TINY), progress=False)
+        train_online(domain, tmp_path / "run", dataclasses.replace(config, total_steps=500), progress=False)
 
 
 def test_every_online_algorithm_name_has_an_algorithm():
     assert tuple(ONLINE_ALGORITHMS) == ONLINE_ALGORITHM_NAMES
 
 
-@pytest.mark.parametrize("flag, says", [(["--steps", "0"], "--steps"), (["--checkpoint-every", "0"], "--checkpoint-every"),
+@pytest.mark.parametrize("flag, says", [(["--steps", "0"], "--steps"), (["--checkpoint-every", "0"], "checkpoint_every"),
                                         (["--algo", "ppo"], "'ppo'")])
 def test_cli_refuses_bad_settings(tmp_path, capsys, flag, says):
     code = main(["online", "train", "--env", "halfcheetah", "--out", str(tmp_path / "run"), *flag])

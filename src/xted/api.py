@@ -48,7 +48,7 @@ def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cp
     :class:`~xted.diffusion.config.PriorConfig` fields (``decay_steps=20_000``, ...);
     ``heldout_episodes`` random target episodes are left out of training (to measure the floor)."""
     from xted.data import split_heldout
-    from xted.config import known_fields
+    from xted.fields import known_fields
     from xted.diffusion.config import PriorConfig
     from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior as train
@@ -101,7 +101,7 @@ def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Data
     ``hidden=(64, 64)``; DARA's backbone as ``iql=IQLConfig(...)``)."""
     import dataclasses
 
-    from xted.config import known_fields
+    from xted.fields import known_fields
     from xted.envs import parse_domain
     from xted.rl.offline_train import default_config, train_offline
 

@@ -128,13 +128,13 @@ class DynamicsProxy:
 
     def error(self, data: Dataset) -> DynamicsError:
         predicted = self.predict(data.observations, data.actions)
-        return DynamicsError.from_differences(predicted - data.next_observations_or_derived())
+        return DynamicsError.from_differences(predicted - data.require_next_observations())
 
 
 def fit_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> DynamicsProxy:
     """Fit the dynamics proxy to ``target``'s transitions; the same seed gives the same proxy."""
     inputs = np.concatenate([target.observations, target.actions], axis=1)
-    deltas = target.next_observations_or_derived() - target.observations
+    deltas = target.require_next_observations() - target.observations
     return DynamicsProxy(fit_mlp(inputs, deltas, config, progress))
 
 
@@ -155,14 +155,14 @@ class RewardProxy:
 def fit_reward_proxy(target: Dataset, config: ProxyConfig = ProxyConfig(), progress: bool = True) -> RewardProxy:
     """Fit the reward proxy to ``target``'s transitions; the same seed gives the same model."""
     target.require_rewards("a reward proxy", "relabel with a target dataset that records rewards")
-    inputs = np.concatenate([target.observations, target.actions, target.next_observations_or_derived()], axis=1)
+    inputs = np.concatenate([target.observations, target.actions, target.require_next_observations()], axis=1)
     model = fit_mlp(inputs, target.rewards[:, None], config, progress, desc="reward proxy")
     return RewardProxy(model, target.observation_dim)
 
 
 def relabel_rewards(data: Dataset, proxy: RewardProxy) -> Dataset:
     """``data`` (a copy) with every reward given by ``proxy`` from its ``(s, a, s')``."""
-    rewards = proxy.predict(data.observations, data.actions, data.next_observations_or_derived())
+    rewards = proxy.predict(data.observations, data.actions, data.require_next_observations())
     metadata = {**{k: v for k, v in data.metadata.items() if k != REWARD_FREE},
                 "rewards": "relabelled by a reward proxy fitted to the target"}
     return dataclasses.replace(data, rewards=rewards.astype(data.rewards.dtype), metadata=metadata)

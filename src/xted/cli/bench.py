@@ -9,9 +9,12 @@ from typing import List, Optional
 import typer
 
 from xted.cli.main import app
+from xted.cli.options import fields_epilog
 from xted.cli.policy import parse_seeds
 from xted.errors import InputError
+from xted.diffusion.config import EditConfig
 from xted.pipelines.bench.config import COLUMNS, BenchConfig, RayConfig
+from xted.rl.config import OFFLINE_ALGORITHMS, DARAConfig
 
 DEFAULTS = BenchConfig()
 RAY_DEFAULTS = RayConfig()
@@ -28,7 +31,16 @@ def _joined(values: tuple) -> str:
     return ",".join(str(value) for value in values)
 
 
-@app.command()
+FIELDS = "\n\n".join((
+    fields_epilog({"--edit fields (the edit of every Tgt+Edited cell; --kappa sets kappa)": EditConfig}, "--edit"),
+    fields_epilog({f"--set fields of --algos {name}": kind for name, kind in OFFLINE_ALGORITHMS.items()
+                   if name != "dara"}),
+    fields_epilog({"--set dara.FIELD: DARA's own fields (its backbone is the IQL learner above)": DARAConfig},
+                  prefix="dara.", nested=False),
+))
+
+
+@app.command(epilog=FIELDS)
 def bench(
     envs: str = typer.Option(_joined(DEFAULTS.envs), "--envs", help="Envs, comma-separated."),
     targets: str = typer.Option(_joined(DEFAULTS.targets), "--targets",

@@ -57,7 +57,8 @@ def make(
     out: Annotated[str, typer.Option("--out", help=DEST_HELP)],
     gap: Annotated[str | None, typer.Option("--gap", help="Domain gap (source data), e.g. gravity or thigh=3.")] = None,
     transitions: Annotated[int, typer.Option("--transitions", min=1, help="Number of transitions.")] = 20_000,
-    run: Annotated[str | None, typer.Option("--run", help="online run folder (xted online train); default: shipped policies.")] = None,
+    run: Annotated[str | None, typer.Option(
+        "--run", help="online run folder (xted online train); default: shipped policies.")] = None,
     seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
 ) -> None:

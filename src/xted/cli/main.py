@@ -24,7 +24,7 @@ app = typer.Typer(
 # fails to import is an error of xted itself, never a command silently missing.
 _SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online",
             "plot": "xted.cli.plot"}
-_COMMAND_MODULES = ["xted.cli.commands", "xted.cli.policy", "xted.cli.render", "xted.cli.bench"]
+_COMMAND_MODULES = ["xted.cli.prior", "xted.cli.policy", "xted.cli.render", "xted.cli.bench"]
 
 
 def _register() -> None:

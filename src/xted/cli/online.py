@@ -4,63 +4,50 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
+from xted.cli.options import config_options, fields_epilog
 from xted.envs import parse_domain
+from xted.fields import apply_overrides, field_help
 from xted.resume import discard_run
-from xted.rl.configs import ONLINE_ALGORITHM_NAMES, OnlineRunConfig
+from xted.rl.config import ONLINE_ALGORITHM_NAMES, OnlineRunConfig
 
 app = typer.Typer(help="Online RL (SAC, TD3) for behaviour policies and domain-gap measurements.",
                   no_args_is_help=True)
 
 
-@app.command("train")
+RUN_FIELDS = "\n\n".join(fields_epilog({f"--set {name}.FIELD (with --algo {name})": getattr(OnlineRunConfig(), name)},
+                                        prefix=f"{name}.") for name in ONLINE_ALGORITHM_NAMES)
+
+
+@app.command("train", epilog=RUN_FIELDS)
+@config_options(OnlineRunConfig, into="run_fields", skip=("total_steps", "init_from", "sac", "td3"),
+                panel="Run settings")
 def train(
     env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain gap to train in (default: target)."),
     out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed (same settings)."),
-    algo: str = typer.Option(OnlineRunConfig.algo, "--algo", help=" or ".join(ONLINE_ALGORITHM_NAMES) + "."),
     steps: int = typer.Option(OnlineRunConfig.total_steps, "--steps", min=1,
-                              help="Total environment steps (one update each)."),
-    checkpoint_every: int = typer.Option(OnlineRunConfig.checkpoint_every, "--checkpoint-every", min=1,
-                                         help="Steps between checkpoints with a greedy evaluation."),
-    start_steps: int = typer.Option(OnlineRunConfig.start_steps, "--start-steps", min=0,
-                                    help="Uniform-random steps before learning."),
-    eval_episodes: int = typer.Option(OnlineRunConfig.eval_episodes, "--eval-episodes", min=1),
-    seed: int = typer.Option(OnlineRunConfig.seed, "--seed", min=0),
-    stop_at_return: Optional[float] = typer.Option(
-        OnlineRunConfig.stop_at_return, "--stop-at-return",
-        help="End the run at the first greedy evaluation whose mean return reaches this."),
-    stop_above_pitch: Optional[float] = typer.Option(
-        OnlineRunConfig.stop_above_pitch, "--stop-above-pitch",
-        help="End the run at the first greedy evaluation whose mean |root pitch| (radians) exceeds this: "
-        "drop a cheetah that has flipped onto its back (about 3; upright runs stay under 0.5)."),
-    terminate_above_pitch: Optional[float] = typer.Option(
-        OnlineRunConfig.terminate_above_pitch, "--terminate-above-pitch",
-        help="While training, end an episode (as a terminal) when |root pitch| exceeds this many radians "
-        "and add --upright-bonus to the reward of every step before, so a halfcheetah learns to run upright; "
-        "evaluations and datasets use the plain domain and its rewards."),
-    upright_bonus: float = typer.Option(OnlineRunConfig.upright_bonus, "--upright-bonus", min=0.0,
-                                        help="Reward per upright training step with --terminate-above-pitch."),
+                              help=field_help(OnlineRunConfig)["total_steps"]),
     init_from: Optional[Path] = typer.Option(
         None, "--init-from", help="Start from the networks of this finished run (same algo): fine-tune a "
         "policy trained in another domain. It acts from the first step; updates begin after --start-steps."),
+    overrides: List[str] = typer.Option([], "--set", help="A learner field: sac.FIELD=VALUE or td3.FIELD=VALUE "
+                                        "(repeatable; the fields: below)."),
     force: bool = typer.Option(False, "--force", help="Delete a previous run in --out and start afresh."),
+    run_fields: List[str] = (),
 ) -> None:
     """Train in a domain; checkpoints, evaluations (evals.csv) and the replay buffer go to --out.
 
-    An interrupted run continues from its last checkpoint when started again with the same
-    settings (a larger --steps extends it)."""
+    An interrupted run continues from its last checkpoint when started again with the same settings (a larger
+    --steps extends it)."""
     from xted.rl.online import train_online
     from xted.rl.run_folder import read_evals
 
-    config = OnlineRunConfig(algo=algo, total_steps=steps, start_steps=start_steps,
-                             checkpoint_every=checkpoint_every, eval_episodes=eval_episodes, seed=seed,
-                             stop_at_return=stop_at_return, stop_above_pitch=stop_above_pitch,
-                             terminate_above_pitch=terminate_above_pitch, upright_bonus=upright_bonus,
-                             init_from=None if init_from is None else str(init_from))
+    config = apply_overrides(OnlineRunConfig(total_steps=steps, init_from=None if init_from is None else str(init_from)),
+                             [*run_fields, *overrides])
     if force:
         discard_run(out, ("run.json",))
     train_online(parse_domain(env, gap), out, config)

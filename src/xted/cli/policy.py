@@ -10,9 +10,11 @@ import numpy as np
 import typer
 
 from xted.cli.main import app
-from xted.config import apply_overrides
+from xted.cli.options import fields_epilog
+from xted.fields import apply_overrides
 from xted.errors import InputError
 from xted.resume import discard_run
+from xted.rl.config import OFFLINE_ALGORITHMS
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -25,9 +27,12 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-@app.command()
+ALGORITHM_FIELDS = fields_epilog({f"--set fields of --algo {name}": kind for name, kind in OFFLINE_ALGORITHMS.items()})
+
+
+@app.command(epilog=ALGORITHM_FIELDS)
 def policy(
-    algo: str = typer.Option("iql", "--algo", help="iql, td3bc, bc or dara."),
+    algo: str = typer.Option("iql", "--algo", help=", ".join(OFFLINE_ALGORITHMS) + " (their fields: below)."),
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     sources: List[str] = typer.Option([], "--source", help="Source dataset mixed in (repeatable)."),
     env: Optional[str] = typer.Option(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -190,12 +191,9 @@ class Dataset:
                 digest.update(np.ascontiguousarray(value).tobytes())
         return digest.hexdigest()
 
-    def next_observations_or_derived(self) -> np.ndarray:
-        """``next_observations`` if stored, else ``observations[t + 1]`` within each episode.
-
-        Raises InputError when a next observation is unknown: the last step of an episode
-        has no successor in a dataset without ``next_observations``.
-        """
+    def require_next_observations(self) -> np.ndarray:
+        """``next_observations``, or an InputError saying the dataset stores none (the last step of
+        an episode has no successor to take it from)."""
         if self.next_observations is not None:
             return self.next_observations
         end = int(np.flatnonzero(self.terminals | self.timeouts)[0])
@@ -203,6 +201,12 @@ class Dataset:
             f"next_observations is missing and cannot be derived for the last step of an episode "
             f"(index {end}); use a dataset that stores next_observations"
         )
+
+    def next_observations_or_derived(self) -> np.ndarray:
+        """Deprecated name of :meth:`require_next_observations` (it never derived); goes in the next release."""
+        warnings.warn("Dataset.next_observations_or_derived is now require_next_observations", DeprecationWarning,
+                      stacklevel=2)
+        return self.require_next_observations()
 
     def summary(self) -> dict[str, Any]:
         """Counts, dimensions, return (None for reward-free data) and length statistics, extras and
@@ -269,6 +273,14 @@ def _json_roundtrip(metadata: Mapping[str, Any]) -> dict[str, Any]:
         return json.loads(json.dumps(dict(metadata)))
     except (TypeError, ValueError) as err:
         raise InputError(f"metadata is not JSON-serialisable: {err}") from None
+
+
+def check_dimensions(data: Dataset, dims: tuple[int, int], name: str, expected_by: str) -> None:
+    """An InputError unless ``data`` has ``dims = (observation_dim, action_dim)``; the message names
+    the data (``name``) and what expects those dimensions (``expected_by``)."""
+    if (data.observation_dim, data.action_dim) != tuple(dims):
+        raise InputError(f"{name} has {data.observation_dim}-d observations and {data.action_dim}-d actions; "
+                         f"{expected_by} has {dims[0]} and {dims[1]}")
 
 
 def split_heldout(dataset: Dataset, episodes: int, seed: int = 0) -> tuple[Dataset, Dataset | None]:

@@ -1,9 +1,9 @@
 """The diffusion prior, one concept per module: ``schedule`` (noise schedule and samplers),
-``denoiser`` (the networks), ``config`` (DenoiserConfig, PriorConfig and its presets, EditConfig: plain Python), ``objective`` (loss and train
-step), ``checkpoint`` (a training folder on disk), ``training`` (the train loop), ``prior`` (the
-trained artefact) and ``editor`` (trajectory editing, which needs only the artefact and the
-denoiser). Names are importable from the package too, loaded on first use, so that importing the
-editor does not load the training stack.
+``denoiser`` (the networks), ``config`` (DenoiserConfig, PriorConfig and its presets, EditConfig:
+plain Python), ``objective`` (loss and train step), ``checkpoint`` (a training folder on disk),
+``training`` (the train loop), ``prior`` (the trained artefact) and ``editor`` (trajectory
+editing, which needs only the artefact and the denoiser). Names are importable from the package
+too, loaded on first use, so that importing the editor does not load the training stack.
 """
 
 from xted.lazy import lazy_exports

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from xted.config import known_fields
+from xted.fields import known_fields, setting
 from xted.errors import InputError
 
 # Per-sample loss weightings by the signal-to-noise ratio of the sampled timestep (xted.diffusion.objective).
@@ -52,23 +52,24 @@ class DenoiserConfig:
     ``round(width_multiplier * element_dim)`` bounded to ``[min_width, max_width]`` ("joint", the FC
     token, has the summed dims of the streams)."""
 
-    state_dim: int
-    action_dim: int
-    use_reward: bool = True
-    width_multiplier: float = 16
-    min_width: int = 0
-    max_width: int | None = None
-    width_override: int | None = None
-    state_blocks: int = 2
-    action_blocks: int = 2
-    reward_blocks: int = 1
-    num_heads: int = 4
-    mlp_ratio: int = 4
-    cond_dim: int = 128
-    return_condition: bool = False
-    horizon: int = 20
-    dtype: str = "float32"
-    architecture: str = "xted"
+    state_dim: int = setting(dataclasses.MISSING, "Observation dimension (from the data).")
+    action_dim: int = setting(dataclasses.MISSING, "Action dimension (from the data).")
+    use_reward: bool = setting(True, "Diffuse a reward stream beside states and actions (off for reward-free data).")
+    width_multiplier: float = setting(16, "Stream width = this x the element's dimension (the paper: 16).")
+    min_width: int = setting(0, "Smallest stream width.")
+    max_width: int | None = setting(None, "Largest stream width (none: unbounded).")
+    width_override: int | None = setting(None, "One width for every stream, instead of the multiplier.")
+    state_blocks: int = setting(2, "Self-attention blocks of the state stream.")
+    action_blocks: int = setting(2, "Self-attention blocks of the action stream.")
+    reward_blocks: int = setting(1, "Self-attention blocks of the reward stream.")
+    num_heads: int = setting(4, "Attention heads (reduced to a divisor of each stream's width).")
+    mlp_ratio: int = setting(4, "Hidden width of each block's MLP, as a multiple of the stream width.")
+    cond_dim: int = setting(128, "Width of the noise-step (and return) condition embedding.")
+    return_condition: bool = setting(False, "Condition on the window's normalised return (classifier-free "
+                                            "guidance, xTED Eq. 12-13).")
+    horizon: int = setting(20, "Window length H in steps.")
+    dtype: str = setting("float32", "Compute dtype of the denoiser (float32 or bfloat16).")
+    architecture: str = setting("xted", "xted, or an ablation: " + ", ".join(ARCHITECTURES[1:]) + ".")
 
     @property
     def streams(self) -> tuple[str, ...]:
@@ -118,17 +119,20 @@ class PriorConfig(DenoiserConfig):
     refuses larger kappas).
     """
 
-    num_timesteps: int = 200
-    batch_size: int = 256
-    learning_rate: float = 2e-4
-    warmup_steps: int = 0
-    decay_steps: int | None = None
-    grad_clip: float | None = 1.0
-    ema_decay: float = 0.999
-    condition_dropout: float = 0.25
-    loss_weighting: str = "uniform"
-    train_kappa_max: float = 1.0
-    seed: int = 0
+    num_timesteps: int = setting(200, "Diffusion steps K.")
+    batch_size: int = setting(256, "Windows per training step.")
+    learning_rate: float = setting(2e-4, "Peak Adam learning rate.")
+    warmup_steps: int = setting(0, "Linear warm-up steps of the learning rate.")
+    decay_steps: int | None = setting(None, "Cosine decay of the learning rate to 0.1x at this step (none: constant).")
+    grad_clip: float | None = setting(1.0, "Global gradient-norm clip (none: off).")
+    ema_decay: float = setting(0.999, "Decay of the parameters' exponential moving average (what edits use).")
+    condition_dropout: float = setting(0.25, "Probability of dropping the return condition in training (for "
+                                             "classifier-free guidance).")
+    loss_weighting: str = setting("uniform", "Per-sample loss weight by noise level: " + " or ".join(LOSS_WEIGHTINGS)
+                                  + ".")
+    train_kappa_max: float = setting(1.0, "Train only on noise steps below this x K (the levels an edit up to "
+                                          "this kappa visits).")
+    seed: int = setting(0, "Seed of initialisation and batches.")
 
     def __post_init__(self) -> None:
         checks = [
@@ -185,19 +189,19 @@ class EditConfig:
     around them, as the first transition is held (inpainting), so the edit changes what the
     actions lead to, not the actions (an ablation)."""
 
-    kappa: float = 0.5
-    iterations: int = 1
-    hold_last: bool = False
-    hold_actions: bool = False
-    guidance: float = 0.0
-    target_return: float = 0.9
-    sampler: str = "ddpm"
-    sampler_steps: int | None = None
-    clip_denoised: float | None = None
-    temperature: float = 0.0
-    eta: float = 0.0
-    batch_size: int = 1024
-    seed: int = 0
+    kappa: float = setting(0.5, "Noise to step k = kappa*K, then denoise k steps.")
+    iterations: int = setting(1, "Repeated noise+denoise rounds.")
+    hold_last: bool = setting(False, "Hold the last transition of each window too.")
+    hold_actions: bool = setting(False, "Keep every source action; edit states (and rewards) around them.")
+    guidance: float = setting(0.0, "Classifier-free return guidance weight (0: unconditional, as the paper's Table 1).")
+    target_return: float = setting(0.9, "Normalised return that guidance steers toward.")
+    sampler: str = setting("ddpm", "ddpm or ddim.")
+    sampler_steps: int | None = setting(None, "DDIM steps (default k).")
+    clip_denoised: float | None = setting(None, "Bound on the predicted x_0 in normalised units (none: off).")
+    temperature: float = setting(0.0, "Scale of the noise each reverse step adds (0: none; 1: the model's own).")
+    eta: float = setting(0.0, "DDIM only: share of the DDPM posterior's noise its steps add (0: deterministic).")
+    batch_size: int = setting(1024, "Episodes edited side by side (windows per denoiser call).")
+    seed: int = setting(0, "Seed of the forward noise (and reverse noise with temperature > 0).")
 
     def __post_init__(self) -> None:
         checks = [

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
-from xted.data import Dataset
+from xted.data import Dataset, check_dimensions
 from xted.data.windows import tile_episodes
 from xted.diffusion.config import DenoiserConfig, EditConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse
@@ -245,11 +245,7 @@ def edit_dataset(
     """
     began = time.perf_counter()
     cfg = prior.config
-    if (source.observation_dim, source.action_dim) != (cfg.state_dim, cfg.action_dim):
-        raise InputError(
-            f"source data has (state_dim, action_dim) = ({source.observation_dim}, {source.action_dim}), "
-            f"the prior was trained on ({cfg.state_dim}, {cfg.action_dim})"
-        )
+    check_dimensions(source, (cfg.state_dim, cfg.action_dim), "the source data", "the prior's training data")
     if cfg.use_reward:
         source.require_rewards("editing with this prior's reward stream",
                                "edit it with a reward-free prior (trained on reward-free target data)")
@@ -265,7 +261,7 @@ def edit_dataset(
         return source.with_metadata(**metadata), report
 
     tiling = tile_episodes(bounds, cfg.horizon)
-    next_observations = source.next_observations_or_derived()
+    next_observations = source.require_next_observations()
     steps, is_next = tiling.sequence_steps, tiling.sequence_is_next
     raw = {
         "state": np.where(is_next[:, None], next_observations[steps], source.observations[steps]),

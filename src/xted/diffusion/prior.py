@@ -14,7 +14,7 @@ import jax
 import numpy as np
 
 from xted.atomic import atomic_path
-from xted.config import known_fields
+from xted.fields import known_fields
 from xted.data import Dataset, Normalizer
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser

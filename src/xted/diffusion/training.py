@@ -19,7 +19,7 @@ import numpy as np
 import orbax.checkpoint as ocp
 from tqdm.auto import tqdm
 
-from xted.data import Dataset, Normalizer
+from xted.data import Dataset, Normalizer, check_dimensions
 from xted.data.windows import WindowSampler, window_index
 from xted.diffusion.checkpoint import checkpoint_manager, prepare_out_dir, read_log, write_log
 from xted.diffusion.config import PriorConfig
@@ -73,11 +73,8 @@ def train_prior(
     for name, value in (("steps", steps), ("log_every", log_every), ("checkpoint_every", checkpoint_every)):
         if int(value) != value or value < 1:
             raise InputError(f"train_prior: {name} must be a positive integer, got {value}")
-    if (target_dataset.observation_dim, target_dataset.action_dim) != (config.state_dim, config.action_dim):
-        raise InputError(
-            f"target data has (state_dim, action_dim) = ({target_dataset.observation_dim}, "
-            f"{target_dataset.action_dim}), the config ({config.state_dim}, {config.action_dim})"
-        )
+    check_dimensions(target_dataset, (config.state_dim, config.action_dim), "the target data",
+                     "the config (state_dim, action_dim)")
     if config.use_reward or config.return_condition:
         target_dataset.require_rewards("a prior with a reward stream or return conditioning",
                                        "train with use_reward=False and return_condition=False (the presets "

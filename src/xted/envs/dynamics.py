@@ -192,7 +192,7 @@ def _state_is_fixed(domain: Domain, model: mujoco.MjModel, observations: np.ndar
 def dataset_dynamics_error(domain: Domain, data: Dataset) -> DynamicsError:
     """:func:`dynamics_error` of every transition of ``data`` (next observations stored or derived);
     an edited dataset (its metadata says ``edit``) has every state replayed, at the clip too."""
-    return dynamics_error(domain, data.observations, data.actions, data.next_observations_or_derived(),
+    return dynamics_error(domain, data.observations, data.actions, data.require_next_observations(),
                           replay_states_at_clip="edit" in data.metadata)
 
 

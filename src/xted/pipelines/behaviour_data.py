@@ -1,8 +1,8 @@
 """D4RL-style datasets made with our own behaviour policies (`xted data make`).
 
 Levels, as D4RL made them: ``random`` (uniform actions), ``medium`` (a policy at about half the
-best return its run reached; D4RL's halfcheetah medium is at 39% of its expert), ``medium-replay`` (the replay buffer of that run up
-to the medium checkpoint), ``expert`` (the best checkpoint), ``medium-expert`` (medium and
+best return its run reached; D4RL's halfcheetah medium is at 39% of its expert), ``medium-replay``
+(the replay buffer of that run up to the medium checkpoint), ``expert`` (the best checkpoint), ``medium-expert`` (medium and
 expert episodes, half each), and ``source`` (the best SAC policy trained in a gap domain,
 collected in that domain). Policies come from a online run folder (``xted online train``) or from the
 checkpoints shipped with xted.
@@ -156,7 +156,8 @@ def build_dataset(domain: Domain, level: str, transitions: int, policies: Behavi
                                            desc=f"{domain.name} {level}")
             chunks.append(chunk)
             all_returns.append(chunk_returns)
-            used.append({"path": policy_reference(path), "step": actor.meta.get("step"), "train_domain": actor.meta.get("domain")})
+            used.append({"path": policy_reference(path), "step": actor.meta.get("step"),
+                         "train_domain": actor.meta.get("domain")})
         arrays = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
         returns = np.concatenate(all_returns)
         policy_info = {"policy": used}

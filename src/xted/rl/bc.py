@@ -1,7 +1,7 @@
 """Behaviour cloning: a deterministic tanh actor regressed on the dataset's actions (MSE).
 
 The learning rate defaults to 3e-4 (TD3+BC's BC baseline on MuJoCo); the xTED paper's robot
-setting uses 1e-4, available through ``lr``.
+setting uses 1e-4, available through ``learning_rate``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.configs import BCConfig
+from xted.rl.config import BCConfig
 from xted.rl.networks import DeterministicPolicy
 
 
@@ -25,7 +25,7 @@ class BCState:
 def init_bc(rng, obs_dim: int, action_dim: int, config: BCConfig) -> BCState:
     actor_def = DeterministicPolicy(config.hidden, action_dim)
     params = actor_def.init(rng, jnp.zeros((1, obs_dim)))["params"]
-    return BCState(TrainState.create(apply_fn=actor_def.apply, params=params, tx=optax.adam(config.lr)))
+    return BCState(TrainState.create(apply_fn=actor_def.apply, params=params, tx=optax.adam(config.learning_rate)))
 
 
 def bc_loss(actor_params, actor: TrainState, batch):

@@ -23,7 +23,7 @@ import optax
 from flax.training.train_state import TrainState
 
 from xted.nn import MLP
-from xted.rl.configs import DARAConfig
+from xted.rl.config import DARAConfig
 
 CLASSIFIER_INPUTS = ("observations", "actions", "next_observations")
 

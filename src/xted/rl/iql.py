@@ -21,8 +21,8 @@ import numpy as np
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.configs import IQLConfig
-from xted.rl.networks import Critic, GaussianPolicy, ValueNet
+from xted.rl.config import IQLConfig
+from xted.rl.networks import Critic, GaussianPolicy, ValueNet, gaussian_log_prob
 
 
 @flax.struct.dataclass
@@ -51,10 +51,6 @@ def init_iql(rng, obs_dim: int, action_dim: int, config: IQLConfig, steps: int) 
 def expectile_loss(diff, expectile: float):
     weight = jnp.where(diff > 0, expectile, 1.0 - expectile)
     return weight * diff**2
-
-
-def gaussian_log_prob(mean, log_std, action):
-    return jnp.sum(-0.5 * ((action - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
 
 
 def _target_q(state: IQLState, batch):

@@ -78,14 +78,16 @@ class ValueNet(nn.Module):
         return MLP(self.hidden, 1)(obs)[..., 0]
 
 
+def gaussian_log_prob(mean, log_std, x):
+    """log N(x; mean, diag(exp(log_std)^2)), summed over the last axis."""
+    return jnp.sum(-0.5 * ((x - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
+
+
 def sample_tanh_gaussian(rng, mean, log_std):
     """Reparameterised sample of tanh(N(mean, std)) and its log-probability."""
-    std = jnp.exp(log_std)
-    pre_tanh = mean + std * jax.random.normal(rng, mean.shape)
+    pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(rng, mean.shape)
     action = jnp.tanh(pre_tanh)
-    log_prob = jnp.sum(
-        -0.5 * ((pre_tanh - mean) / std) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1
-    )
+    log_prob = gaussian_log_prob(mean, log_std, pre_tanh)
     # log|d tanh(u)/du| = 2 (log 2 - u - softplus(-2u)), numerically stable
     log_prob -= jnp.sum(2.0 * (jnp.log(2.0) - pre_tanh - jax.nn.softplus(-2.0 * pre_tanh)), axis=-1)
     return action, log_prob

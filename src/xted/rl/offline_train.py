@@ -23,11 +23,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from xted.atomic import atomic_path
-from xted.data import Dataset
+from xted.data import Dataset, check_dimensions
 from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.jsonfiles import read_json
 from xted.resume import check_same_run
+from xted.rl.config import OFFLINE_ALGORITHMS
 from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
 from xted.rl.evaluation import PolicyFn, evaluate
@@ -37,7 +38,7 @@ from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
 
 AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig
 Learner = IQLConfig | TD3BCConfig | BCConfig
-ALGORITHMS: dict[str, type] = {"iql": IQLConfig, "td3bc": TD3BCConfig, "bc": BCConfig, "dara": DARAConfig}
+ALGORITHMS = OFFLINE_ALGORITHMS
 OBS_STD_EPS = 1e-3
 
 
@@ -104,7 +105,7 @@ def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards:
         "terminals": np.concatenate([d.terminals for d in datasets]),
     }
     if next_states:
-        arrays["next_observations"] = (np.concatenate([d.next_observations_or_derived() for d in datasets]) - mean) / std
+        arrays["next_observations"] = (np.concatenate([d.require_next_observations() for d in datasets]) - mean) / std
     arrays = {k: v.astype(np.float32) for k, v in arrays.items()}
     return OfflineData(arrays, mean.astype(np.float32), std.astype(np.float32), len(target))
 
@@ -207,10 +208,7 @@ def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain | 
         dims, where = (env.observation_space.shape[0], env.action_space.shape[0]), domain.name
         env.close()
     for i, data in enumerate([target, *sources]):
-        if (data.observation_dim, data.action_dim) != dims:
-            name = "target" if i == 0 else f"source {i - 1}"
-            raise InputError(f"the {name} dataset has observation/action dims {data.observation_dim}/"
-                             f"{data.action_dim}; {where} has {dims[0]}/{dims[1]}")
+        check_dimensions(data, dims, "the target dataset" if i == 0 else f"source dataset {i - 1}", where)
 
 
 def train_offline(

@@ -9,9 +9,9 @@ dispatch, a host gather and a host-to-device copy per update; the acting actor i
 ``block`` updates old. Blocks end at episode ends, so a run resumed from its last checkpoint (always
 at an episode end) replays the same blocks and is the same run.
 
-A run folder holds ``run.json`` (domain and config: the run's fingerprint, :mod:`xted.resume`), ``state.msgpack`` + ``buffer.npz`` (the resume
-point), ``evals.csv`` (greedy evaluation along training, with the run's wall and CPU seconds so
-far) and ``checkpoints/actor_STEP.msgpack``.
+A run folder holds ``run.json`` (domain and config: the run's fingerprint, :mod:`xted.resume`),
+``state.msgpack`` + ``buffer.npz`` (the resume point), ``evals.csv`` (greedy evaluation along
+training, with the run's wall and CPU seconds so far) and ``checkpoints/actor_STEP.msgpack``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from xted.atomic import atomic_path
 from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.resume import resume_or_record
-from xted.rl.configs import OnlineRunConfig
+from xted.rl.config import OnlineRunConfig
 from xted.rl.run_folder import actor_checkpoint, read_evals, write_evals
 from xted.rl.evaluation import ROOT_PITCH, evaluate
 from xted.rl.policy_io import Policy, save_actor

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.configs import SACConfig
+from xted.rl.config import SACConfig
 from xted.rl.networks import Critic, TanhGaussianPolicy, sample_tanh_gaussian
 
 

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import optax
 from flax.training.train_state import TrainState
 
-from xted.rl.configs import TD3BCConfig
+from xted.rl.config import TD3BCConfig
 from xted.rl.networks import Critic, DeterministicPolicy
 
 

@@ -22,8 +22,8 @@ class BenchConfig:
     ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``overrides``: the algorithm
     config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
-    one, else one the bench trains: ``prior_steps`` of the ``prior_preset``); ``transitions``: use only the first N transitions of every dataset (a quick look at the
-    protocol; None: all)."""
+    one, else one the bench trains: ``prior_steps`` of the ``prior_preset``); ``transitions``: use
+    only the first N transitions of every dataset (a quick look at the protocol; None: all)."""
 
     envs: tuple[str, ...] = ("halfcheetah", "walker2d")
     targets: tuple[str, ...] = ("medium-replay",)

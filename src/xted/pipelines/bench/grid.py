@@ -23,7 +23,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from xted.config import apply_overrides
+from xted.fields import apply_overrides
 from xted.data import Dataset, load, shipped
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.config import preset as prior_preset
@@ -46,7 +46,7 @@ from xted.pipelines.bench.config import (
     BenchConfig,
 )
 from xted.resume import as_json
-from xted.rl.configs import DARAConfig
+from xted.rl.config import DARAConfig
 from xted.rl.offline_train import AlgoConfig, algorithm_name, default_config
 
 SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LEVEL-cpu

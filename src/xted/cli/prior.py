@@ -1,4 +1,4 @@
-"""Top-level commands of ``xted``: train a prior, edit source data, the demo."""
+"""Top-level commands of ``xted`` around the prior: train one, edit source data with it, the demo."""
 
 from __future__ import annotations
 
@@ -10,35 +10,39 @@ import typer
 
 from xted.analysis.config import ProxyConfig
 from xted.cli.main import app
-from xted.config import apply_overrides
-from xted.diffusion.config import EditConfig
+from xted.cli.options import config_options
+from xted.fields import apply_overrides
+from xted.diffusion.config import EditConfig, PriorConfig
 from xted.errors import InputError
 from xted.pipelines.bench.config import BenchConfig
 from xted.resume import discard_run
 
 
 @app.command()
+@config_options(PriorConfig, into="prior_fields", skip=("state_dim", "action_dim"), preset_defaults=True)
 def train(
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     out: Path = typer.Option(..., "--out", help="Prior folder; an existing one is resumed."),
     preset: str = typer.Option("cpu", "--preset",
                                help="cpu (fast, small), paper (the paper's model) or tiny (a smoke test)."),
     steps: int = typer.Option(20_000, "--steps", min=1, help="Total training steps."),
-    seed: int = typer.Option(0, "--seed", min=0),
     checkpoint_every: int = typer.Option(1000, "--checkpoint-every", min=1),
     heldout_episodes: int = typer.Option(0, "--heldout-episodes", min=0,
                                          help="Leave this many random target episodes out (to measure the floor)."),
     overrides: List[str] = typer.Option([], "--set", help="Override a config field: FIELD=VALUE (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Delete a previous prior in --out and start afresh."),
+    prior_fields: List[str] = (),
 ) -> None:
-    """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints)."""
+    """Train the diffusion prior on target trajectories (resumable; progress, CSV log, checkpoints).
+
+    The preset gives every field of the prior's config; an option below (or --set FIELD=VALUE) replaces one."""
     from xted.data import load, split_heldout
     from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior
 
     data, _ = split_heldout(load(target), heldout_episodes)
-    config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards, seed=seed)
-    config = apply_overrides(config, overrides)
+    config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards)
+    config = apply_overrides(config, [*prior_fields, *overrides])
     if force:
         discard_run(out, ("prior.json",))
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
@@ -46,28 +50,11 @@ def train(
 
 
 @app.command()
+@config_options(EditConfig, into="edit_fields")
 def edit(
     prior: str = typer.Option(..., "--prior", help="Prior folder (xted train) or a shipped prior's name."),
     source: str = typer.Option(..., "--source", help="Source dataset (path or shipped name)."),
     out: str = typer.Option(..., "--out", help="Edited dataset; the format follows the path."),
-    kappa: float = typer.Option(EditConfig.kappa, "--kappa", min=0.0, max=1.0,
-                                help="Noise to step k = kappa*K, then denoise k steps."),
-    iterations: int = typer.Option(EditConfig.iterations, "--iterations", min=1, help="Repeated noise+denoise rounds."),
-    hold_last: bool = typer.Option(EditConfig.hold_last, "--hold-last",
-                                   help="Hold the last transition of each window too."),
-    hold_actions: bool = typer.Option(EditConfig.hold_actions, "--hold-actions",
-                                      help="Keep every source action; edit states (and rewards) around them."),
-    guidance: float = typer.Option(
-        EditConfig.guidance, "--guidance", min=0.0,
-        help="Classifier-free return guidance weight (0: unconditional, as the paper's Table 1)."),
-    sampler: str = typer.Option(EditConfig.sampler, "--sampler", help="ddpm or ddim."),
-    sampler_steps: Optional[int] = typer.Option(EditConfig.sampler_steps, "--sampler-steps", min=1,
-                                                help="DDIM steps (default k)."),
-    temperature: float = typer.Option(EditConfig.temperature, "--temperature", min=0.0,
-                                      help="Scale of the noise each reverse step adds (0: none; 1: the model's own)."),
-    eta: float = typer.Option(EditConfig.eta, "--eta", min=0.0, max=1.0,
-                              help="DDIM only: share of the DDPM posterior's noise its steps add (0: deterministic)."),
-    seed: int = typer.Option(0, "--seed", min=0),
     relabel_rewards_from: Optional[str] = typer.Option(
         None, "--relabel-rewards",
         help="Target dataset to fit a reward proxy r(s, a, s') to; it gives every edited transition its reward."),
@@ -76,34 +63,32 @@ def edit(
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),
+    edit_fields: List[str] = (),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
     from xted.analysis import fit_reward_proxy, relabel_rewards
     from xted.api import load_prior
-    from xted.data import formats, load
+    from xted.data import check_dimensions, formats, load
     from xted.diffusion.editor import edit_dataset
     from xted.envs import check_same_env, dataset_env
 
+    config = apply_overrides(EditConfig(), edit_fields)
     formats.check_writable(formats.target(out), overwrite=force)
     prior_model = load_prior(prior)
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
                                               "--prior": prior_model.path})
-    config = EditConfig(kappa=kappa, iterations=iterations, hold_last=hold_last, hold_actions=hold_actions,
-                        guidance=guidance, sampler=sampler, sampler_steps=sampler_steps, temperature=temperature,
-                        eta=eta, seed=seed)
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
-    if reward_data is not None and (reward_data.observation_dim, reward_data.action_dim) != (
-            source_data.observation_dim, source_data.action_dim):
-        raise InputError(f"--relabel-rewards {relabel_rewards_from} has {reward_data.observation_dim}-d observations "
-                         f"and {reward_data.action_dim}-d actions; the source has {source_data.observation_dim} and "
-                         f"{source_data.action_dim}")
+    if reward_data is not None:
+        check_dimensions(reward_data, (source_data.observation_dim, source_data.action_dim),
+                         f"--relabel-rewards {relabel_rewards_from}", "the source")
     for role, name, data in (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data)):
         if data is not None:
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
     edited, report = edit_dataset(prior_model, source_data, config, progress=True)
     if reward_data is not None:
-        edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps, seed=seed)))
+        edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps,
+                                                                           seed=config.seed)))
         report["rewards_relabelled_from"] = relabel_rewards_from
     formats.save(edited, out, overwrite=force)
     typer.echo(json.dumps({"out": out, **report}))
