@@ -78,7 +78,7 @@ def fit_mlp(inputs: np.ndarray, outputs: np.ndarray, config: ProxyConfig, progre
 
     init_key, data_key = jax.random.split(jax.random.PRNGKey(config.seed))
     params = MLP(config.hidden, y.shape[1], activation=nn.silu).init(init_key, x[:1])
-    optimizer = optax.adam(optax.cosine_decay_schedule(config.lr, config.steps))
+    optimizer = optax.adam(optax.cosine_decay_schedule(config.learning_rate, config.steps))
     opt_state = optimizer.init(params)
 
     def update(carry, key):
