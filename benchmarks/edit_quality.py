@@ -2,7 +2,7 @@
 
     python benchmarks/edit_quality.py --env halfcheetah --prior PRIOR --target halfcheetah-medium-replay \
         [--heldout-episodes 2] [--gaps gravity friction thigh] [--kappa 0.5] [--temperature T ...]
-        [--floor-seeds 3] [--edit FIELD=VALUE ...] [--out runs/edit_quality.jsonl]
+        [--floor-seeds 3] [--edit FIELD=VALUE ...] [--project-dynamics] [--out runs/edit_quality.jsonl]
 
 The prior must have been trained with the same ``--heldout-episodes`` (the split is deterministic):
 those target episodes measure the floor (the same edit applied to target data the prior never saw),
@@ -52,6 +52,9 @@ def main() -> None:
     parser.add_argument("--floor-seeds", type=int, default=3, help="Edit seeds the floor is averaged over.")
     parser.add_argument("--edit", nargs="*", default=[],
                         help="EditConfig overrides (e.g. iterations=2 target_return=0.5), for every kappa.")
+    parser.add_argument("--project-dynamics", action="store_true",
+                        help="Project each edited window onto the rollout of a dynamics proxy fitted to the prior's "
+                        "training episodes (a second proxy, seed + 1, so the measuring one is not the projecting one).")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None, help="Append one JSON line per row.")
     args = parser.parse_args()
@@ -60,6 +63,7 @@ def main() -> None:
     train, heldout = split_heldout(load(args.target), args.heldout_episodes)
     prior = load_prior(args.prior)
     proxy = fit_proxy(train, ProxyConfig(seed=args.seed))
+    dynamics = fit_proxy(train, ProxyConfig(seed=args.seed + 1)).predict if args.project_dynamics else None
 
     def proxy_resolution(data) -> float:
         return dynamics_error(domain, data.observations, data.actions, proxy.predict(data.observations, data.actions)).mae
@@ -78,18 +82,19 @@ def main() -> None:
         config = dataclasses.replace(base, kappa=kappa, temperature=temperature, seed=args.seed)
         floors = []
         for seed in range(args.seed, args.seed + args.floor_seeds):
-            floor, _ = edit_dataset(prior, heldout, dataclasses.replace(config, seed=seed))
+            floor, _ = edit_dataset(prior, heldout, dataclasses.replace(config, seed=seed), dynamics=dynamics)
             floors.append(edit_report(domain, heldout, floor, proxy))
         sims = [f["simulator"]["edited"]["mae"] for f in floors]
         floor_row = {"sim": float(np.mean(sims)), "sim_std": float(np.std(sims)), "sim_seeds": sims,
                      "n": floors[0]["simulator"]["edited"]["n"],
                      "proxy": float(np.mean([f["proxy"]["edited"] for f in floors]))}
         for gap, source in sources.items():
-            edited, report = edit_dataset(prior, source, config)
+            edited, report = edit_dataset(prior, source, config, dynamics=dynamics)
             measured = edit_report(domain, source, edited, proxy)
             content = measured["content"]
             row = {
                 "env": args.env, "gap": gap, "kappa": kappa, "edit": args.edit,
+                "project_dynamics": args.project_dynamics,
                 "edit_config": dataclasses.asdict(config), "prior": str(args.prior),
                 "target": args.target, "source_sha256": source.fingerprint(),
                 "sim_source": measured["simulator"]["source"]["mae"], "sim_edited": measured["simulator"]["edited"]["mae"],

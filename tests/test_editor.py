@@ -141,6 +141,27 @@ def test_edited_episodes_are_stitched(source, edited):
     assert not np.allclose(result.next_observations[-1], source.next_observations[-1])  # the final state is edited
 
 
+def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keeps_the_stitching(prior, source, edited):
+    """With ``dynamics``, each edited next state is the model's prediction for the edited (state, action),
+    episodes stay one sequence, and the actions are still the prior's edit (not the source's)."""
+    weights = np.random.default_rng(3).normal(size=(5, 3)) * 0.1
+
+    def dynamics(observations, actions):
+        return 0.9 * observations + np.concatenate([observations, actions], axis=1) @ weights
+
+    projected, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0), dynamics=dynamics)
+    edited_rows = np.ones(len(source.observations), bool)
+    edited_rows[[start for start, _ in projected.episode_bounds()]] = False  # each episode's first state is held
+    short = [i for start, end in projected.episode_bounds() if end - start < H - 1 for i in range(start, end)]
+    edited_rows[short] = False  # episodes too short to edit pass through
+    predicted = dynamics(projected.observations, projected.actions)
+    np.testing.assert_allclose(projected.next_observations[edited_rows], predicted[edited_rows], rtol=1e-4, atol=1e-4)
+    for start, end in projected.episode_bounds():
+        np.testing.assert_array_equal(projected.next_observations[start:end - 1], projected.observations[start + 1:end])
+    assert not np.allclose(projected.actions[edited_rows], source.actions[edited_rows])
+    assert projected.metadata["edit"]["dynamics_projection"] and not edited[0].metadata["edit"]["dynamics_projection"]
+
+
 def test_edits_of_a_walker2d_prior_stay_inside_its_observation_space():
     """Walker2d observes velocities within +-10: edited states beyond are clipped into it (and counted)."""
     config = dataclasses.replace(TINY, state_dim=17, action_dim=6)

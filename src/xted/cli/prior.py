@@ -60,13 +60,19 @@ def edit(
         help="Target dataset to fit a reward proxy r(s, a, s') to; it gives every edited transition its reward."),
     reward_proxy_steps: int = typer.Option(ProxyConfig.steps, "--reward-proxy-steps", min=1,
                                            help="Training steps of that proxy."),
+    project_dynamics: Optional[str] = typer.Option(
+        None, "--project-dynamics",
+        help="Target dataset to fit a dynamics model to (the paper's proxy); each edited window's states become that "
+        "model's rollout under the edited actions (opt-in, beyond the paper; docs/editing.md)."),
+    dynamics_proxy_steps: int = typer.Option(ProxyConfig.steps, "--dynamics-proxy-steps", min=1,
+                                             help="Training steps of that dynamics model."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),
     edit_fields: List[str] = (),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics."""
-    from xted.analysis import fit_reward_proxy, relabel_rewards
+    from xted.analysis import fit_proxy, fit_reward_proxy, relabel_rewards
     from xted.api import load_prior
     from xted.data import check_dimensions, formats, load
     from xted.diffusion.editor import edit_dataset
@@ -76,20 +82,25 @@ def edit(
     formats.check_writable(formats.target(out), overwrite=force)
     prior_model = load_prior(prior)
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
-                                              "--prior": prior_model.path})
+                                              "--project-dynamics": project_dynamics, "--prior": prior_model.path})
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
-    if reward_data is not None:
-        check_dimensions(reward_data, (source_data.observation_dim, source_data.action_dim),
-                         f"--relabel-rewards {relabel_rewards_from}", "the source")
-    for role, name, data in (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data)):
+    dynamics_data = None if project_dynamics is None else load(project_dynamics)
+    inputs = (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data),
+              ("--project-dynamics", project_dynamics, dynamics_data))
+    for role, name, data in inputs:
         if data is not None:
+            check_dimensions(data, (source_data.observation_dim, source_data.action_dim), f"{role} {name}", "the source")
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
-    edited, report = edit_dataset(prior_model, source_data, config, progress=True)
+    dynamics = None if dynamics_data is None else fit_proxy(
+        dynamics_data, ProxyConfig(steps=dynamics_proxy_steps, seed=config.seed)).predict
+    edited, report = edit_dataset(prior_model, source_data, config, progress=True, dynamics=dynamics)
     if reward_data is not None:
         edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps,
                                                                            seed=config.seed)))
         report["rewards_relabelled_from"] = relabel_rewards_from
+    if dynamics_data is not None:
+        report["dynamics_projected_by_a_model_of"] = project_dynamics
     formats.save(edited, out, overwrite=force)
     typer.echo(json.dumps({"out": out, **report}))
 

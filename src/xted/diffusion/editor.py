@@ -227,9 +227,23 @@ def edit_windows(
     return out["state"], out["action"], out["reward"] if prior.config.use_reward else rewards
 
 
+def _rollout(prior: Prior, dynamics: Dynamics, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Normalised ``[B, H, D]`` states: the first as given, each next ``dynamics(state, action)``."""
+    observations = functools.partial(prior.normalizer.denormalize, "observations")
+    raw_actions = prior.normalizer.denormalize("actions", actions)
+    current, out = observations(states[:, 0]), states.copy()  # the held state stays bit-identical
+    for t in range(states.shape[1] - 1):
+        current = np.asarray(dynamics(current, raw_actions[:, t]), np.float64)
+        out[:, t + 1] = prior.normalizer.normalize("observations", current)
+    return out
+
+
 # ------------------------------------------------------------------------------- datasets
+Dynamics = Callable[[np.ndarray, np.ndarray], np.ndarray]  # (observations, actions) -> next observations, raw units
+
+
 def edit_dataset(
-    prior: Prior, source: Dataset, config: EditConfig, progress: bool = False
+    prior: Prior, source: Dataset, config: EditConfig, progress: bool = False, dynamics: Dynamics | None = None,
 ) -> tuple[Dataset, dict[str, Any]]:
     """Edit every episode of ``source`` with ``prior``; returns the edited dataset and a report.
 
@@ -242,6 +256,12 @@ def edit_dataset(
     the prior's target env can observe, clipped into it: walker2d's velocities), ``dropped_extras``
     and wall ``seconds`` (compilation included).
     ``progress`` shows a bar over the stitched steps.
+
+    ``dynamics`` (opt-in, beyond the paper): a model of the target's one-step dynamics, such as
+    ``xted.analysis.fit_proxy(target).predict``. Each denoised window's states after its held first
+    one are replaced by that model's rollout under the window's edited actions, so every edited
+    transition is one the model predicts and the episode stays one sequence; the next window
+    starts from the rollout's last state, and its actions are denoised from there.
     """
     began = time.perf_counter()
     cfg = prior.config
@@ -252,7 +272,8 @@ def edit_dataset(
     k = config.noise_steps(cfg.num_timesteps)
     metadata = {
         **source.metadata,
-        "edit": {"config": dataclasses.asdict(config), "prior": prior.path, "prior_step": prior.step, "noise_steps": k},
+        "edit": {"config": dataclasses.asdict(config), "prior": prior.path, "prior_step": prior.step, "noise_steps": k,
+                 "dynamics_projection": dynamics is not None},
     }
     bounds = source.episode_bounds()
     if k == 0:
@@ -286,6 +307,8 @@ def edit_dataset(
             x[s][stitched, 0] = edited[s][previous[stitched], carried[stitched]]
         keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
         out = edit(x, keys)
+        if dynamics is not None:
+            out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]))}
         for s in streams:
             edited[s][ids[live]] = np.asarray(out[s])[live]
 

@@ -5,6 +5,7 @@ this and the denoiser."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -59,13 +60,14 @@ class Prior:
         return cosine_schedule(self.config.num_timesteps)
 
     def edit(self, source: Dataset, kappa: float = 0.5, seed: int = 0, progress: bool = False,
-             **fields: Any) -> Dataset:
+             dynamics: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None, **fields: Any) -> Dataset:
         """``source`` edited toward this prior's target dynamics (:func:`xted.diffusion.editor.edit_dataset`);
-        ``fields`` set any other :class:`EditConfig` field (``temperature``, ``sampler``, ...)."""
+        ``fields`` set any other :class:`EditConfig` field (``temperature``, ``sampler``, ...);
+        ``dynamics`` (opt-in) projects the edited states onto a target dynamics model's rollout."""
         from xted.diffusion.editor import edit_dataset
 
         config = EditConfig(kappa=kappa, seed=seed, **known_fields(EditConfig, fields))
-        return edit_dataset(self, source, config, progress)[0]
+        return edit_dataset(self, source, config, progress, dynamics)[0]
 
 
 EXPORTED_PARAMS = "params.msgpack"
