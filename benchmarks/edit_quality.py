@@ -55,6 +55,9 @@ def main() -> None:
     parser.add_argument("--project-dynamics", action="store_true",
                         help="Project each edited window onto the rollout of a dynamics proxy fitted to the prior's "
                         "training episodes (a second proxy, seed + 1, so the measuring one is not the projecting one).")
+    parser.add_argument("--dynamics-weight", nargs="+", type=float, default=None,
+                        help="With --project-dynamics: the weights of the model's predictions to sweep "
+                        "(EditConfig.dynamics_weight; default its own, or --edit's).")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None, help="Append one JSON line per row.")
     args = parser.parse_args()
@@ -78,8 +81,9 @@ def main() -> None:
     sources = {gap: load(f"{args.env}-{gap}") for gap in args.gaps}
     resolution_sources = {gap: proxy_resolution(d) for gap, d in sources.items()}
     base = apply_overrides(EditConfig(), args.edit)
-    for kappa, temperature in itertools.product(args.kappa, args.temperature or [base.temperature]):
-        config = dataclasses.replace(base, kappa=kappa, temperature=temperature, seed=args.seed)
+    for kappa, temperature, weight in itertools.product(args.kappa, args.temperature or [base.temperature],
+                                                        args.dynamics_weight or [base.dynamics_weight]):
+        config = dataclasses.replace(base, kappa=kappa, temperature=temperature, dynamics_weight=weight, seed=args.seed)
         floors = []
         for seed in range(args.seed, args.seed + args.floor_seeds):
             floor, _ = edit_dataset(prior, heldout, dataclasses.replace(config, seed=seed), dynamics=dynamics)
@@ -105,7 +109,8 @@ def main() -> None:
                 "floor": floor_row, "content": content, "edit_seconds": report["seconds"],
             }
             m, mm = content["matched"], content["mismatched"]
-            print(f"| {gap} | {kappa} T={temperature} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} "
+            shown = f"{kappa} T={temperature}" + (f" w={weight}" if dynamics is not None else "")
+            print(f"| {gap} | {shown} | {row['sim_source']:.3f} -> {row['sim_edited']:.3f} "
                   f"({row['sim_edited'] / row['sim_source']:.2f}) "
                   f"| {row['proxy_source']:.3f} -> {row['proxy_edited']:.3f} ({row['proxy_edited'] / row['proxy_source']:.2f}) "
                   f"| {row['proxy_resolution_source']:.3f} "

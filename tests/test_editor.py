@@ -160,6 +160,15 @@ def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keep
         np.testing.assert_array_equal(projected.next_observations[start:end - 1], projected.observations[start + 1:end])
     assert not np.allclose(projected.actions[edited_rows], source.actions[edited_rows])
     assert projected.metadata["edit"]["dynamics_projection"] and not edited[0].metadata["edit"]["dynamics_projection"]
+    unweighted, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=0.0),
+                                 dynamics=dynamics)
+    np.testing.assert_allclose(unweighted.next_observations, edited[0].next_observations, atol=1e-5)
+    halfway, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=0.5),
+                              dynamics=dynamics)
+    for start, end in halfway.episode_bounds():
+        np.testing.assert_array_equal(halfway.next_observations[start:end - 1], halfway.observations[start + 1:end])
+    assert 0 < np.abs(halfway.next_observations - edited[0].next_observations).max() < np.abs(
+        projected.next_observations - edited[0].next_observations).max()
 
 
 def test_edits_of_a_walker2d_prior_stay_inside_its_observation_space():

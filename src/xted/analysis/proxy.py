@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import flax.linen as nn
@@ -56,6 +57,7 @@ class FittedMLP:
         return y * self.output_std + self.output_mean
 
 
+@partial(jax.jit, static_argnums=(1, 3))
 def _apply(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, out: int) -> jnp.ndarray:
     return MLP(hidden, out, activation=nn.silu).apply(params, x)
 

@@ -200,6 +200,9 @@ class EditConfig:
     clip_denoised: float | None = setting(None, "Bound on the predicted x_0 in normalised units (none: off).")
     temperature: float = setting(0.0, "Scale of the noise each reverse step adds (0: none; 1: the model's own).")
     eta: float = setting(0.0, "DDIM only: share of the DDPM posterior's noise its steps add (0: deterministic).")
+    dynamics_weight: float = setting(1.0, "With a dynamics model (--project-dynamics): each edited next state is "
+                                          "this x the model's prediction + the rest x the prior's (1: the model's "
+                                          "rollout).")
     batch_size: int = setting(1024, "Episodes edited side by side (windows per denoiser call).")
     seed: int = setting(0, "Seed of the forward noise (and reverse noise with temperature > 0).")
 
@@ -216,6 +219,7 @@ class EditConfig:
             (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
             (self.temperature >= 0, f"temperature must be >= 0, got {self.temperature}"),
             (0.0 <= self.eta <= 1.0, f"eta must be in [0, 1], got {self.eta}"),
+            (0.0 <= self.dynamics_weight <= 1.0, f"dynamics_weight must be in [0, 1], got {self.dynamics_weight}"),
             (self.eta == 0.0 or self.sampler == "ddim", "eta is for the ddim sampler only"),
         ]
         for ok, message in checks:

@@ -227,13 +227,15 @@ def edit_windows(
     return out["state"], out["action"], out["reward"] if prior.config.use_reward else rewards
 
 
-def _rollout(prior: Prior, dynamics: Dynamics, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
-    """Normalised ``[B, H, D]`` states: the first as given, each next ``dynamics(state, action)``."""
-    observations = functools.partial(prior.normalizer.denormalize, "observations")
+def _rollout(prior: Prior, dynamics: Dynamics, states: np.ndarray, actions: np.ndarray, weight: float) -> np.ndarray:
+    """Normalised ``[B, H, D]`` states: the first as given, each next ``weight * dynamics(state, action)
+    + (1 - weight) * `` the given one, from the state before it so made."""
+    denormalize = functools.partial(prior.normalizer.denormalize, "observations")
     raw_actions = prior.normalizer.denormalize("actions", actions)
-    current, out = observations(states[:, 0]), states.copy()  # the held state stays bit-identical
+    current, out = denormalize(states[:, 0]), states.copy()  # the held state stays bit-identical
     for t in range(states.shape[1] - 1):
-        current = np.asarray(dynamics(current, raw_actions[:, t]), np.float64)
+        predicted = np.asarray(dynamics(current, raw_actions[:, t]), np.float64)
+        current = weight * predicted + (1.0 - weight) * denormalize(states[:, t + 1])
         out[:, t + 1] = prior.normalizer.normalize("observations", current)
     return out
 
@@ -259,9 +261,10 @@ def edit_dataset(
 
     ``dynamics`` (opt-in, beyond the paper): a model of the target's one-step dynamics, such as
     ``xted.analysis.fit_proxy(target).predict``. Each denoised window's states after its held first
-    one are replaced by that model's rollout under the window's edited actions, so every edited
-    transition is one the model predicts and the episode stays one sequence; the next window
-    starts from the rollout's last state, and its actions are denoised from there.
+    one are replaced, in order, by ``w * dynamics(state before, action) + (1 - w) * denoised state``
+    (``w = config.dynamics_weight``; 1: the model's rollout under the edited actions, every edited
+    transition one the model predicts); the episode stays one sequence, and the next window starts
+    from the last state so made, its actions denoised from there.
     """
     began = time.perf_counter()
     cfg = prior.config
@@ -308,7 +311,8 @@ def edit_dataset(
         keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
         out = edit(x, keys)
         if dynamics is not None:
-            out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]))}
+            out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]),
+                                            config.dynamics_weight)}
         for s in streams:
             edited[s][ids[live]] = np.asarray(out[s])[live]
 

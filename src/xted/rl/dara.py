@@ -92,5 +92,6 @@ def source_reward_deltas(keys, target: dict, source: dict, config: DARAConfig,
 
 
 def corrected_rewards(rewards: np.ndarray, deltas: np.ndarray, config: DARAConfig) -> np.ndarray:
-    """``r + eta * clip(delta, -clip, clip)``."""
+    """``r + eta * clip(delta, -clip, clip)``: DARA's reward augmentation ``r - eta * delta_r``, whose
+    ``delta_r = log p_src(s'|s,a) / p_tgt(s'|s,a)`` is ``-delta`` here (Liu et al. 2022)."""
     return rewards + config.eta * np.clip(deltas, -config.clip, config.clip)
