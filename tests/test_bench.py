@@ -400,3 +400,16 @@ def test_default_grid_is_the_lite_table():
     assert (config.envs, config.targets, config.gaps, config.columns, config.algos, config.seeds, config.steps) == (
         ("halfcheetah", "walker2d"), ("medium-replay",), ("thigh", "gravity", "friction"), COLUMNS, ("iql",),
         (0, 1, 2, 3, 4), 30_000)
+
+
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
+def test_the_committed_lite_table_is_found_under_today_s_cell_keys(env):
+    """A change to a config's fields must not orphan the committed results (their keys hash the configs)."""
+    from pathlib import Path
+
+    from xted.pipelines.bench.config import TGT, TGT_EDITED, TGT_ORACLE, TGT_SRC
+    from xted.pipelines.bench.report import task_rows
+
+    store = Path(__file__).parent.parent / BenchConfig.store
+    rows = task_rows(env, "medium-replay", "thigh", (TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE), str(store))
+    assert [row["n_seeds"] for row in rows] == [5, 5, 5, 5], rows

@@ -142,14 +142,15 @@ def test_edited_episodes_are_stitched(source, edited):
 
 
 def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keeps_the_stitching(prior, source, edited):
-    """With ``dynamics``, each edited next state is the model's prediction for the edited (state, action),
-    episodes stay one sequence, and the actions are still the prior's edit (not the source's)."""
+    """With ``dynamics`` at weight 1, each edited next state is the model's prediction for the edited (state,
+    action); episodes stay one sequence at every weight, and the actions are still the prior's edit."""
     weights = np.random.default_rng(3).normal(size=(5, 3)) * 0.1
 
     def dynamics(observations, actions):
         return 0.9 * observations + np.concatenate([observations, actions], axis=1) @ weights
 
-    projected, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0), dynamics=dynamics)
+    projected, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=1.0),
+                                dynamics=dynamics)
     edited_rows = np.ones(len(source.observations), bool)
     edited_rows[[start for start, _ in projected.episode_bounds()]] = False  # each episode's first state is held
     short = [i for start, end in projected.episode_bounds() if end - start < H - 1 for i in range(start, end)]

@@ -62,8 +62,9 @@ def edit(
                                            help="Training steps of that proxy."),
     project_dynamics: Optional[str] = typer.Option(
         None, "--project-dynamics",
-        help="Target dataset to fit a dynamics model to (the paper's proxy); each edited window's states become that "
-        "model's rollout under the edited actions (opt-in, beyond the paper; docs/editing.md)."),
+        help="Target dataset to fit a dynamics model to (the paper's proxy); each edited state becomes --dynamics-weight "
+        "x that model's prediction from the state before + the rest x the prior's (opt-in, beyond the paper; "
+        "docs/editing.md)."),
     dynamics_proxy_steps: int = typer.Option(ProxyConfig.steps, "--dynamics-proxy-steps", min=1,
                                              help="Training steps of that dynamics model."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),

@@ -200,7 +200,7 @@ class EditConfig:
     clip_denoised: float | None = setting(None, "Bound on the predicted x_0 in normalised units (none: off).")
     temperature: float = setting(0.0, "Scale of the noise each reverse step adds (0: none; 1: the model's own).")
     eta: float = setting(0.0, "DDIM only: share of the DDPM posterior's noise its steps add (0: deterministic).")
-    dynamics_weight: float = setting(1.0, "With a dynamics model (--project-dynamics): each edited next state is "
+    dynamics_weight: float = setting(0.5, "With a dynamics model (--project-dynamics): each edited next state is "
                                           "this x the model's prediction + the rest x the prior's (1: the model's "
                                           "rollout).")
     batch_size: int = setting(1024, "Episodes edited side by side (windows per denoiser call).")

@@ -48,7 +48,9 @@ def edit_label(row: dict) -> str:
         return " ".join(row.get("edit") or []) or "default"
     defaults = dataclasses.asdict(EditConfig())
     changed = [f"{key}={value}" for key, value in row["edit_config"].items()
-               if key not in ("kappa", "seed") and key in defaults and value != defaults[key]]
+               if key not in ("kappa", "seed", "dynamics_weight") and key in defaults and value != defaults[key]]
+    if row.get("project_dynamics"):  # the weight matters only with a dynamics model
+        changed.append(f"project-dynamics w={row['edit_config']['dynamics_weight']}")
     return " ".join(changed) or "default"
 
 

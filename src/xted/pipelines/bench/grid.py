@@ -196,6 +196,15 @@ def check_names(config: BenchConfig) -> None:
             raise InputError(f"--prior {key}=...: {key!r} is not ENV or ENV-TARGET of an env in the grid")
 
 
+def edit_identity(edit: EditConfig) -> dict:
+    """What makes two of the bench's edits the same: the edit config without ``dynamics_weight``
+    (the bench edits without a dynamics model, so the weight changes nothing, and cells keyed before
+    the field existed keep their keys)."""
+    fields = dataclasses.asdict(edit)
+    fields.pop("dynamics_weight")
+    return fields
+
+
 def edit_config(config: BenchConfig) -> EditConfig:
     return dataclasses.replace(apply_overrides(EditConfig(), list(config.edit)), kappa=config.kappa)
 
@@ -255,7 +264,7 @@ def plan(config: BenchConfig) -> Grid:
                 meta = read_prior_json(prior / "prior.json")
                 check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
                 identity = folder_fingerprint(prior)
-            inputs = {"kind": kind, "source": fingerprint(source), "prior": identity, "edit": dataclasses.asdict(edit)}
+            inputs = {"kind": kind, "source": fingerprint(source), "prior": identity, "edit": edit_identity(edit)}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
             if math.isfinite(observation_velocity_clip(parse_domain(env))):
