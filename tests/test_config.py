@@ -89,3 +89,12 @@ def test_old_names_still_work_with_a_deprecation_warning():
                    timeouts=np.zeros(2, bool), next_observations=np.ones((2, 1), np.float32))
     with pytest.warns(DeprecationWarning, match="require_next_observations"):
         assert data.next_observations_or_derived() is data.next_observations
+
+
+def test_negative_seeds_are_refused_by_the_configs_the_cli_options_come_from():
+    from xted.diffusion.config import EditConfig, preset
+    from xted.rl.config import OnlineRunConfig
+
+    for build in (lambda: EditConfig(seed=-1), lambda: preset("tiny", 3, 2, seed=-1), lambda: OnlineRunConfig(seed=-1)):
+        with pytest.raises(InputError, match="seed"):
+            build()

@@ -87,9 +87,9 @@ def edit(
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
     dynamics_data = None if project_dynamics is None else load(project_dynamics)
-    inputs = (("--source", source, source_data), ("--relabel-rewards", relabel_rewards_from, reward_data),
-              ("--project-dynamics", project_dynamics, dynamics_data))
-    for role, name, data in inputs:
+    check_same_env(prior_model.env, dataset_env(source_data.metadata), f"--source {source}", allow_env_mismatch)
+    for role, name, data in (("--relabel-rewards", relabel_rewards_from, reward_data),
+                             ("--project-dynamics", project_dynamics, dynamics_data)):
         if data is not None:
             check_dimensions(data, (source_data.observation_dim, source_data.action_dim), f"{role} {name}", "the source")
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)

@@ -139,6 +139,7 @@ class PriorConfig(DenoiserConfig):
             (self.state_dim >= 1 and self.action_dim >= 1, "state_dim and action_dim must be >= 1"),
             (self.horizon >= 2, f"horizon must be >= 2, got {self.horizon}"),
             (self.num_timesteps >= 1, f"num_timesteps must be >= 1, got {self.num_timesteps}"),
+            (self.seed >= 0, f"seed must be >= 0, got {self.seed}"),
             (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),
             (self.warmup_steps >= 0, f"warmup_steps must be >= 0, got {self.warmup_steps}"),
             (self.decay_steps is None or self.decay_steps >= 1, f"decay_steps must be >= 1, got {self.decay_steps}"),
@@ -210,6 +211,7 @@ class EditConfig:
         checks = [
             (0.0 <= self.kappa <= 1.0, f"kappa must be in [0, 1], got {self.kappa}"),
             (self.iterations >= 1, f"iterations must be >= 1, got {self.iterations}"),
+            (self.seed >= 0, f"seed must be >= 0, got {self.seed}"),
             (self.sampler in ("ddpm", "ddim"), f"sampler must be 'ddpm' or 'ddim', got {self.sampler!r}"),
             (self.sampler_steps is None or self.sampler == "ddim", "sampler_steps is for the ddim sampler only"),
             (self.sampler_steps is None or self.sampler_steps >= 1,

@@ -127,8 +127,8 @@ class OnlineRunConfig:
         for name in ("total_steps", "checkpoint_every", "eval_episodes", "block"):
             if getattr(self, name) <= 0:
                 raise InputError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.start_steps < 0 or self.exploration_noise < 0 or self.upright_bonus < 0:
-            raise InputError("start_steps, exploration_noise and upright_bonus must be >= 0")
+        if self.start_steps < 0 or self.exploration_noise < 0 or self.upright_bonus < 0 or self.seed < 0:
+            raise InputError("start_steps, exploration_noise, upright_bonus and seed must be >= 0")
         for name in ("stop_above_pitch", "terminate_above_pitch"):
             if getattr(self, name) is not None and not getattr(self, name) > 0:
                 raise InputError(f"{name} must be > 0 radians, got {getattr(self, name)}")
