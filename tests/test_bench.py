@@ -240,6 +240,44 @@ def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
     assert all(c.data_cell.prior_cell is None for c in shipped_prior.learners.values())
 
 
+def test_projected_edits_are_keyed_apart_and_projected_onto_a_model_of_the_row_s_target(tmp_path, monkeypatch):
+    """--project-dynamics: the edit cell names the dynamics model (the row's target, the proxy's
+    settings) and the weight; the plain edit's key is unchanged by the weight. The cell's edit is
+    the editor's projection onto a proxy fitted to the target's first transitions."""
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,), kappa=0.05)
+    (plain,) = plan(config).learners.values()
+    (reweighted,) = plan(dataclasses.replace(config, edit=("dynamics_weight=0.25",))).learners.values()
+    assert reweighted.data_cell.key == plain.data_cell.key and plain.data_cell.dynamics is None
+    projected_config = dataclasses.replace(config, project_dynamics=True, dynamics_proxy_steps=3)
+    (projected,) = plan(projected_config).learners.values()
+    cell = projected.data_cell
+    assert cell.dynamics == grid.DynamicsModel("halfcheetah-medium-replay", 200, cell.dynamics.proxy)
+    assert cell.dynamics.proxy.steps == 3 and cell.inputs["edit"]["dynamics_weight"] == 0.5
+    assert cell.key != plain.data_cell.key and projected.key != plain.key
+    (heavier,) = plan(dataclasses.replace(projected_config, edit=("dynamics_weight=0.25",))).learners.values()
+    assert heavier.data_cell.key != cell.key
+
+    fitted, projections = [], []
+    real_fit, real_edit = cells.fit_proxy, cells.edit_dataset
+
+    def fit_proxy(target, proxy_config, progress):
+        fitted.append((len(target), proxy_config.steps))
+        return real_fit(target, proxy_config, progress)
+
+    def edit_dataset(prior, source, edit, dynamics=None):
+        projections.append(dynamics)
+        return real_edit(prior, source, edit, dynamics=dynamics)
+
+    monkeypatch.setattr(cells, "fit_proxy", fit_proxy)
+    monkeypatch.setattr(cells, "edit_dataset", edit_dataset)
+    grid_plan = plan(projected_config)
+    data = cells.make_data(cell, grid_plan.datasets[cell.source])
+    assert fitted == [(200, 3)] and callable(projections[0])
+    assert np.array_equal(data.next_observations[:-1][~(data.terminals | data.timeouts)[:-1]],
+                          data.observations[1:][~(data.terminals | data.timeouts)[:-1]])
+    assert not np.allclose(data.observations, cells.edited(plain.data_cell, grid_plan.datasets[cell.source]).observations)
+
+
 def write_hand_made_results(config, scores):
     """Results of the grid's cells with the given final scores per column (one per seed)."""
     for row in plan(config).rows:

@@ -57,6 +57,12 @@ def bench(
                                       help="Episodes per evaluation."),
     kappa: float = typer.Option(DEFAULTS.kappa, "--kappa", min=0.0, max=1.0, help="Edit noise level kappa."),
     edit: List[str] = typer.Option([], "--edit", help="EditConfig override FIELD=VALUE (repeatable)."),
+    project_dynamics: bool = typer.Option(
+        DEFAULTS.project_dynamics, "--project-dynamics",
+        help="Project every edit onto a dynamics model fitted to the row's target data, as xted edit "
+        "--project-dynamics does (--edit dynamics_weight=W; opt-in, beyond the paper)."),
+    dynamics_proxy_steps: int = typer.Option(DEFAULTS.dynamics_proxy_steps, "--dynamics-proxy-steps", min=1,
+                                             help="Training steps of that dynamics model."),
     overrides: List[str] = typer.Option(
         [], "--set", help="Algorithm config override FIELD=VALUE, DARA's own as dara.FIELD=VALUE (repeatable)."),
     priors: List[str] = typer.Option(
@@ -98,7 +104,8 @@ def bench(
         envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
         columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
-        overrides=tuple(overrides), priors=tuple(priors), prior_steps=prior_steps,
+        project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
+        priors=tuple(priors), prior_steps=prior_steps,
         prior_preset=prior_preset, transitions=transitions, store=str(store),
         cache=str(cache))
     if (as_json or png is not None or curves or edit_quality) and not report:

@@ -7,19 +7,25 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from xted.data import Dataset
+from xted.analysis import fit_proxy
+from xted.data import Dataset, load
 from xted.diffusion.editor import edit_dataset
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import predict_next_observations, recovered_velocities, replayed_rewards
 from xted.envs.make import forward_velocity_index, observation_velocity_clip
-from xted.pipelines.bench.grid import DataCell, LearnerCell
+from xted.pipelines.bench.grid import DataCell, LearnerCell, first_transitions
 from xted.rl.offline_train import train_offline
 
 
 def edited(cell: DataCell, source: Dataset) -> Dataset:
-    """The source edited with the cell's prior, as ``xted edit`` does."""
-    data, _ = edit_dataset(load_prior(cell.prior), source, cell.edit)
+    """The source edited with the cell's prior, as ``xted edit`` does (``--project-dynamics`` where
+    the cell names a dynamics model)."""
+    dynamics = None
+    if cell.dynamics is not None:
+        target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
+        dynamics = fit_proxy(target, cell.dynamics.proxy, progress=False).predict
+    data, _ = edit_dataset(load_prior(cell.prior), source, cell.edit, dynamics=dynamics)
     return data
 
 

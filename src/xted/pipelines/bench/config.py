@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from xted.analysis.config import ProxyConfig
 from xted.errors import InputError
 
 # What a learner trains on, besides the target data it is evaluated against.
@@ -19,7 +20,9 @@ DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column ex
 class BenchConfig:
     """One grid: envs x target levels x gaps x columns x algos x seeds (the "lite table" by default).
 
-    ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``overrides``: the algorithm
+    ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``project_dynamics``: each
+    edit is projected onto a dynamics model fitted to the row's target data (``xted edit
+    --project-dynamics TARGET``, ``dynamics_proxy_steps`` Adam steps); ``overrides``: the algorithm
     config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
     one, else one the bench trains: ``prior_steps`` of the ``prior_preset``); ``transitions``: use
@@ -36,6 +39,8 @@ class BenchConfig:
     eval_episodes: int = 10
     kappa: float = 0.5
     edit: tuple[str, ...] = ()
+    project_dynamics: bool = False
+    dynamics_proxy_steps: int = ProxyConfig.steps
     overrides: tuple[str, ...] = ()
     priors: tuple[str, ...] = ()
     transitions: int | None = None
@@ -54,7 +59,7 @@ class BenchConfig:
             raise InputError(f"bench: unknown column {unknown[0]!r}; known: {', '.join(COLUMNS)}")
         if any(seed < 0 for seed in self.seeds):
             raise InputError(f"bench: seeds must be non-negative, got {list(self.seeds)}")
-        for name in ("steps", "eval_every", "eval_episodes", "prior_steps"):
+        for name in ("steps", "eval_every", "eval_episodes", "prior_steps", "dynamics_proxy_steps"):
             if getattr(self, name) <= 0:
                 raise InputError(f"bench: {name} must be positive, got {getattr(self, name)}")
         if self.transitions is not None and self.transitions < 2:

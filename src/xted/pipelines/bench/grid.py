@@ -23,6 +23,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from xted.analysis.config import ProxyConfig
 from xted.fields import apply_overrides
 from xted.data import Dataset, load, shipped
 from xted.diffusion.config import EditConfig, PriorConfig
@@ -102,6 +103,15 @@ class PriorCell:
         return f"prior-{self.target}-{self.key[:12]}"
 
 
+@dataclasses.dataclass(frozen=True)
+class DynamicsModel:
+    """A dynamics model of the target, fitted to its first ``transitions`` (all for None)."""
+
+    target: str  # dataset name
+    transitions: int | None
+    proxy: ProxyConfig
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class DataCell:
     """An edit (``target`` is the prior's target level) or an oracle relabelling of one source."""
@@ -116,6 +126,7 @@ class DataCell:
     inputs: dict = dataclasses.field(default_factory=dict)
     key: str = ""
     prior_cell: PriorCell | None = None  # where the bench trains the prior itself
+    dynamics: DynamicsModel | None = None  # the model an edit is projected onto (``--project-dynamics``)
 
     @property
     def name(self) -> str:
@@ -196,12 +207,13 @@ def check_names(config: BenchConfig) -> None:
             raise InputError(f"--prior {key}=...: {key!r} is not ENV or ENV-TARGET of an env in the grid")
 
 
-def edit_identity(edit: EditConfig) -> dict:
-    """What makes two of the bench's edits the same: the edit config without ``dynamics_weight``
-    (the bench edits without a dynamics model, so the weight changes nothing, and cells keyed before
-    the field existed keep their keys)."""
+def edit_identity(edit: EditConfig, projected: bool) -> dict:
+    """What makes two of the bench's edits the same: the edit config, without ``dynamics_weight``
+    where the edit is not projected (the weight changes nothing then, and cells keyed before the
+    field existed keep their keys)."""
     fields = dataclasses.asdict(edit)
-    fields.pop("dynamics_weight")
+    if not projected:
+        fields.pop("dynamics_weight")
     return fields
 
 
@@ -257,6 +269,7 @@ def plan(config: BenchConfig) -> Grid:
                   ) -> DataCell:
         source = f"{env}-{gap}"
         trained = prior if isinstance(prior, PriorCell) else None
+        dynamics = None
         if kind == "edit":
             if trained is not None:
                 prior, identity = Path(trained.folder), {"kind": "prior", "key": trained.key}
@@ -264,14 +277,20 @@ def plan(config: BenchConfig) -> Grid:
                 meta = read_prior_json(prior / "prior.json")
                 check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
                 identity = folder_fingerprint(prior)
-            inputs = {"kind": kind, "source": fingerprint(source), "prior": identity, "edit": edit_identity(edit)}
+            projected = config.project_dynamics
+            inputs = {"kind": kind, "source": fingerprint(source), "prior": identity,
+                      "edit": edit_identity(edit, projected)}
+            if projected:
+                dynamics = DynamicsModel(f"{env}-{target}", config.transitions,
+                                         ProxyConfig(steps=config.dynamics_proxy_steps, seed=edit.seed))
+                inputs["dynamics"] = {"target": fingerprint(dynamics.target), "proxy": dataclasses.asdict(dynamics.proxy)}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
             if math.isfinite(observation_velocity_clip(parse_domain(env))):
                 # Only where observations clip does the recovery change the relabelling (and the key).
                 inputs["states_at_velocity_clip"] = "recovered by replaying the source"
         return DataCell(kind, env, gap, source, target, None if prior is None else str(prior),
-                        edit if kind == "edit" else None, inputs, cell_key(inputs), trained)
+                        edit if kind == "edit" else None, inputs, cell_key(inputs), trained, dynamics)
 
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
