@@ -6,6 +6,8 @@ from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset, poli
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
 from xted.errors import InputError
+from xted.rl.policy_io import Policy
+from xted.rl.run_folder import actor_checkpoint, read_evals
 from xted.rl.sac import SACConfig
 from xted.rl.online import OnlineRunConfig, train_online
 
@@ -42,6 +44,22 @@ def test_levels_from_a_run(tiny_run, level):
     assert data.timeouts[-1] or data.terminals[-1]
     # Real target-domain transitions: the simulator replays them exactly.
     assert dynamics_error(domain, data.observations, data.actions, data.next_observations).mae < 1e-6
+
+
+def test_a_chosen_medium_step_is_the_medium_policy_and_cuts_the_replay_buffer(tiny_run):
+    evaluated = [int(row["step"]) for row in read_evals(tiny_run)]
+    default = BehaviourPolicies.from_run(tiny_run)
+    step = min(s for s in evaluated if actor_checkpoint(tiny_run, s) != default.medium)
+    chosen = BehaviourPolicies.from_run(tiny_run, medium_step=step)
+    assert chosen.medium == actor_checkpoint(tiny_run, step) and chosen.expert == default.expert
+    assert Policy.load(chosen.medium).meta["step"] == step
+    data = build_dataset(parse_domain("halfcheetah"), "medium-replay", 400, chosen, seed=1, progress=False)
+    assert data.metadata["policy"] == str(chosen.medium)
+    with np.load(tiny_run / "buffer.npz") as buffer:
+        prefix = buffer["observations"][:step]
+    assert {row.tobytes() for row in data.observations} <= {row.tobytes() for row in prefix}
+    with pytest.raises(InputError, match="no evaluated checkpoint at that step"):
+        BehaviourPolicies.from_run(tiny_run, medium_step=step + 1)
 
 
 def test_source_data_is_cut_into_whole_episodes_with_timeouts():

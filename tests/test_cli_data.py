@@ -157,12 +157,14 @@ def test_list(capsys, monkeypatch):
     assert main(["data", "list"]) == 0
     assert "no shipped datasets" in capsys.readouterr().out
     entry = {"file": "toy.npz", "transitions": 20000, "normalized_score": 41.2}
-    monkeypatch.setattr(shipped, "manifest", lambda: {"datasets": {"toy-medium": entry}})
+    monkeypatch.setattr(shipped, "manifest", lambda: {"datasets": {"toy-medium": entry, "walker2d-medium": entry}})
     assert main(["data", "list"]) == 0
-    out = capsys.readouterr().out
-    assert "toy-medium" in out and "transitions=20000" in out and "normalized_score=41.2" in out
+    out = capsys.readouterr().out.splitlines()
+    assert "toy-medium" in out[0] and "transitions=20000" in out[0] and "normalized_score=41.2 file" in out[0]
+    assert "normalized_score=41.2 (D4RL's: 62) file" in out[1]
     assert main(["data", "list", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == {"toy-medium": entry}
+    assert json.loads(capsys.readouterr().out) == {"toy-medium": entry,
+                                                   "walker2d-medium": {**entry, "d4rl_normalized_score": 62.0}}
 
 
 @pytest.mark.parametrize("command", [[], ["info"], ["convert"], ["list"]])

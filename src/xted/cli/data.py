@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from xted.data import formats, shipped
+from xted.errors import InputError
 
 app = typer.Typer(
     help="Inspect, convert and list datasets (.npz, D4RL-style .hdf5/.h5, Minari).",
@@ -59,6 +60,9 @@ def make(
     transitions: Annotated[int, typer.Option("--transitions", min=1, help="Number of transitions.")] = 20_000,
     run: Annotated[str | None, typer.Option(
         "--run", help="online run folder (xted online train); default: shipped policies.")] = None,
+    medium_step: Annotated[int | None, typer.Option(
+        "--medium-step", min=0, help="With --run: the evaluated checkpoint that is the medium policy (medium, "
+        "medium-replay's buffer cut, medium-expert); default: the one nearest half the best return.")] = None,
     seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
     force: Annotated[bool, typer.Option("--force", help="Replace an existing output.")] = False,
 ) -> None:
@@ -66,11 +70,13 @@ def make(
     from xted.pipelines.behaviour_data import BehaviourPolicies, build_dataset
     from xted.envs import parse_domain
 
+    if medium_step is not None and run is None:
+        raise InputError("--medium-step goes with --run (the shipped policies' medium is fixed)")
     domain = parse_domain(env, gap)
     formats.check_writable(formats.target(out), overwrite=force)
     policies = None
     if level != "random":
-        policies = BehaviourPolicies.from_run(run) if run else BehaviourPolicies.shipped(domain)
+        policies = BehaviourPolicies.from_run(run, medium_step) if run else BehaviourPolicies.shipped(domain)
     dataset = build_dataset(domain, level, transitions, policies, seed=seed)
     formats.save(dataset, out, overwrite=force)
     typer.echo(f"wrote {len(dataset)} transitions ({dataset.num_episodes} episodes) of {domain.name} {level} "
@@ -83,15 +89,19 @@ def list_shipped(
 ) -> None:
     """List the datasets shipped with xted."""
     entries = {name: shipped.manifest()["datasets"][name] for name in shipped.names()}
+    d4rl = {name: shipped.d4rl_behaviour_score(name) for name in entries}
     if as_json:
-        typer.echo(json.dumps(entries, indent=2))
+        typer.echo(json.dumps({name: {**entry, **({"d4rl_normalized_score": d4rl[name]} if d4rl[name] else {})}
+                               for name, entry in entries.items()}, indent=2))
         return
     if not entries:
         typer.echo("no shipped datasets")
     for name, entry in entries.items():
+        score = entry.get("normalized_score")
+        beside = f" (D4RL's: {d4rl[name]:g})" if d4rl[name] else ""
         typer.echo(
             f"{name}: transitions={entry.get('transitions', '?')} "
-            f"normalized_score={entry.get('normalized_score', '?')} file={entry.get('file', '?')}"
+            f"normalized_score={'?' if score is None else f'{score:.1f}'}{beside} file={entry.get('file', '?')}"
         )
 
 

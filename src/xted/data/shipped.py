@@ -14,6 +14,18 @@ from typing import Any
 
 MANIFEST_NAME = "manifest.json"
 
+# D4RL's (v2) behaviour scores as published, normalised, for the levels we ship: what ours are made to match.
+D4RL_BEHAVIOUR_SCORES = {
+    "halfcheetah": {"medium-replay": 27.0, "medium": 40.0, "medium-expert": 64.0},
+    "walker2d": {"medium-replay": 15.0, "medium": 62.0, "medium-expert": 82.0},
+}
+
+
+def d4rl_behaviour_score(name: str) -> float | None:
+    """D4RL's behaviour score of the dataset of that name (``walker2d-medium``), None where D4RL has no such level."""
+    env, _, level = name.partition("-")
+    return D4RL_BEHAVIOUR_SCORES.get(env, {}).get(level)
+
 
 def assets_dir() -> Path:
     return Path(str(resources.files("xted") / "assets" / "datasets"))

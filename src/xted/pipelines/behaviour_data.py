@@ -40,13 +40,21 @@ class BehaviourPolicies:
     replay: Path | None  # npz of the replay buffer up to the medium checkpoint
 
     @classmethod
-    def from_run(cls, run_dir: str | Path) -> "BehaviourPolicies":
+    def from_run(cls, run_dir: str | Path, medium_step: int | None = None) -> "BehaviourPolicies":
+        """The run's best checkpoint and its medium one: ``medium_step``'s checkpoint where given
+        (an evaluated one), else the one :func:`select_checkpoints` picks."""
         run_dir = Path(run_dir)
         evals = read_evals(run_dir)
         if not evals:
-            raise InputError(f"{run_dir} has no evaluated SAC checkpoints (evals.csv)")
-        best_step, medium_step = select_checkpoints(evals)
-        return cls(actor_checkpoint(run_dir, best_step), actor_checkpoint(run_dir, medium_step),
+            raise InputError(f"{run_dir} has no evaluated checkpoints (evals.csv)")
+        best_step, chosen_step = select_checkpoints(evals)
+        if medium_step is not None:
+            evaluated = sorted(int(row["step"]) for row in evals)
+            if medium_step not in evaluated or not actor_checkpoint(run_dir, medium_step).is_file():
+                raise InputError(f"--medium-step {medium_step}: {run_dir} has no evaluated checkpoint at that step "
+                                 f"({len(evaluated)} evaluated, steps {evaluated[0]} to {evaluated[-1]}: evals.csv)")
+            chosen_step = medium_step
+        return cls(actor_checkpoint(run_dir, best_step), actor_checkpoint(run_dir, chosen_step),
                    run_dir / "buffer.npz")
 
     @classmethod
