@@ -306,6 +306,8 @@ CASES = [
     Case("bench-zero-dynamics-proxy-steps", "bench --project-dynamics --dynamics-proxy-steps 0",
          lambda ws: ["bench", "--project-dynamics", "--dynamics-proxy-steps", "0", "--store", str(ws / "store")],
          "--dynamics-proxy-steps"),
+    Case("bench-cost-without-report", "bench --cost without --report",
+         lambda ws: ["bench", "--cost", "--store", str(ws / "store")], "go with --report"),
     Case("data-medium-step-without-run", "data make --medium-step without --run",
          lambda ws: ["data", "make", "--env", "halfcheetah", "--level", "medium", "--medium-step", "100",
                      "--out", str(ws / "m.npz")], "--medium-step goes with --run"),

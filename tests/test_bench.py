@@ -315,6 +315,28 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     assert png.is_file()
 
 
+def test_report_cost_shares_each_group_s_time_among_its_seeds_and_counts_a_shared_edit_once(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt", "Tgt+Edited", "Tgt+Edited DARA"))
+    rows = plan(config).rows
+    for row, group_seconds in zip(rows, (3600.0, 7200.0, None)):
+        for cell in row.cells:
+            timing = {} if group_seconds is None else {"group_seconds": group_seconds, "group_size": 2}
+            store.write_result(config.store, cell, {"final_score": 1.0, **timing})
+    edit = rows[1].cells[0].data_cell
+    assert rows[2].cells[0].data_cell.key == edit.key  # Tgt+Edited and its DARA column read one edit
+    store.write_result(config.store, edit, {"kind": "edit", "seconds": 1800.0})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited,Tgt+Edited DARA",
+               "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
+               "--store", config.store, "--cache", config.cache, "--report"]
+    assert main(["bench", *options, "--json"]) == 0
+    cost = json.loads(capsys.readouterr().out)["cost"]
+    assert [(row["kind"], row["cells"], row["unrecorded"]) for row in cost] == [
+        ("learner", 2, 0), ("learner", 2, 0), ("learner", 2, 2), ("edit", 1, 0)]
+    assert [row["hours"] for row in cost] == pytest.approx([1.0, 2.0, 0.0, 0.5])  # 2 seeds of a 1 h group: 1 h
+    assert main(["bench", *options, "--cost"]) == 0
+    assert "| Total | | 7 | 3.50 | 2 |" in capsys.readouterr().out
+
+
 def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):
     config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt",))
     (cell_0, cell_1), = [row.cells for row in plan(config).rows]

@@ -77,13 +77,16 @@ def bench(
     store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
     cache: Path = typer.Option(Path(DEFAULTS.cache), "--cache", help="Folder of made datasets (edits, oracles)."),
     report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
-    as_json: bool = typer.Option(False, "--json", help="With --report: print {\"rows\": [...]}."),
+    as_json: bool = typer.Option(
+        False, "--json", help="With --report: print {\"rows\": [...], \"aggregate\": [...], \"cost\": [...]}."),
     png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
     edit_quality: List[Path] = typer.Option(
         [], "--edit-quality", help="With --report: also the edit-quality table of these JSON-lines files "
         "(benchmarks/edit_quality.py --out), rows of the grid's envs and gaps, checked against the edit targets."),
     curves: bool = typer.Option(False, "--curves", help="With --report: also print each row's learning curve "
                                 "(mean ± std over seeds at every evaluation)."),
+    cost: bool = typer.Option(False, "--cost", help="With --report: also print the wall-clock hours each group of "
+                              "seeds, edit, oracle and bench-trained prior took (the JSON always has them)."),
     executor: str = typer.Option("local", "--executor",
                                  help="local: one group of seeds after another here; ray: as Ray tasks."),
     address: Optional[str] = typer.Option(
@@ -108,8 +111,8 @@ def bench(
         priors=tuple(priors), prior_steps=prior_steps,
         prior_preset=prior_preset, transitions=transitions, store=str(store),
         cache=str(cache))
-    if (as_json or png is not None or curves or edit_quality) and not report:
-        raise InputError("--json, --png, --curves and --edit-quality go with --report")
+    if (as_json or png is not None or curves or cost or edit_quality) and not report:
+        raise InputError("--json, --png, --curves, --cost and --edit-quality go with --report")
     ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
                       gpus_per_task=gpus_per_task)
     if not report:
@@ -129,7 +132,8 @@ def bench(
     from xted.pipelines.bench.edit_quality import markdown as edit_quality_markdown
     from xted.pipelines.bench.edit_quality import read_rows as edit_quality_rows
     from xted.pipelines.bench.grid import plan
-    from xted.pipelines.bench.report import aggregate, aggregate_markdown, curves_markdown, markdown, table_rows
+    from xted.pipelines.bench.report import (aggregate, aggregate_markdown, cost_markdown, cost_rows, curves_markdown,
+                                             markdown, table_rows)
 
     if png is not None:
         from xted.viz.plots import check_png_path
@@ -141,11 +145,12 @@ def bench(
     if edit_quality and not quality:
         raise InputError(f"--edit-quality: no rows of envs {_joined(config.envs)} and gaps {_joined(config.gaps)}")
     if as_json:
-        typer.echo(json.dumps({"rows": rows, "aggregate": aggregate(rows),
+        typer.echo(json.dumps({"rows": rows, "aggregate": aggregate(rows), "cost": cost_rows(grid),
                                **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
                                   if edit_quality else {})}))
     else:
         sections = [markdown(rows), aggregate_markdown(rows), curves_markdown(rows) if curves else "",
+                    cost_markdown(cost_rows(grid)) if cost else "",
                     edit_quality_markdown(quality) if quality else ""]
         typer.echo("\n\n".join(section for section in sections if section))
     if png is not None:

@@ -2,7 +2,7 @@
 algo (mean, std and 95% t-interval of the final normalised score over the seeds found, and the
 learning curve of those seeds), its markdown with each mixed column's gain against Tgt as the
 paper prints it, and the aggregate over tasks (IQM per column, the probability that Tgt+Edited
-improves on Tgt and on Tgt+Src; :mod:`xted.analysis.stats`)."""
+improves on Tgt and on Tgt+Src; :mod:`xted.analysis.stats`), and what the cells cost."""
 
 from __future__ import annotations
 
@@ -143,4 +143,44 @@ def curves_markdown(rows: list[dict]) -> str:
         cells = [f"{points[step]['mean']:.1f} ± {points[step]['std']:.1f}" if step in points else MISSING
                  for step in steps]
         out.append("| " + " | ".join([row["env"], row["target"], row["gap"], row["column"], row["algo"], *cells]) + " |")
+    return "\n".join(out)
+
+
+def cost_rows(grid: Grid) -> list[dict]:
+    """The wall-clock hours the grid's stored cells took on the machines that computed them: per
+    group of learner seeds (each seed's share of its group's time, summed over the seeds found),
+    then each edit, oracle and bench-trained prior once, however many groups read it. ``unrecorded``
+    counts the cells found without a time (stored before times were kept)."""
+    groups: dict[tuple, dict] = {}
+    made: dict[str, dict] = {}
+    for cell in grid.learners.values():
+        result = store.read_result(grid.config.store, cell)
+        if result is None:
+            continue
+        row = groups.setdefault(cell.group, {"kind": "learner", "group": " ".join(str(part) for part in cell.group
+                                                                                  if part is not None),
+                                             "cells": 0, "hours": 0.0, "unrecorded": 0})
+        row["cells"] += 1
+        if "group_seconds" in result:
+            row["hours"] += result["group_seconds"] / result["group_size"] / 3600
+        else:
+            row["unrecorded"] += 1
+        data_cell = cell.data_cell
+        for made_cell in (data_cell, data_cell and data_cell.prior_cell):
+            if made_cell is not None and made_cell.key not in made:
+                record = store.read_result(grid.config.store, made_cell)
+                if record is not None:
+                    made[made_cell.key] = {"kind": made_cell.kind, "group": f"{made_cell.env} {made_cell.name}",
+                                           "cells": 1, "hours": record.get("seconds", 0.0) / 3600,
+                                           "unrecorded": int("seconds" not in record)}
+    return [*groups.values(), *made.values()]
+
+
+def cost_markdown(costs: list[dict]) -> str:
+    """The cost block: one line per group and a total."""
+    out = ["| cost: group | kind | cells | hours | cells without a time |", "|---|---|---|---|---|"]
+    for row in costs:
+        out.append(f"| {row['group']} | {row['kind']} | {row['cells']} | {row['hours']:.2f} | {row['unrecorded']} |")
+    total = {key: sum(row[key] for row in costs) for key in ("cells", "hours", "unrecorded")}
+    out.append(f"| Total | | {total['cells']} | {total['hours']:.2f} | {total['unrecorded']} |")
     return "\n".join(out)
