@@ -48,8 +48,10 @@ class SACConfig:
 @dataclasses.dataclass(frozen=True)
 class TD3BCConfig:
     hidden: tuple[int, ...] = setting((256, 256), "Hidden layer widths of the actor and both critics.")
-    actor_lr: float = setting(1e-5, "Actor learning rate (the xTED paper's; TD3+BC's own is 3e-4).")
-    critic_lr: float = setting(1e-3, "Critic learning rate (the xTED paper's; TD3+BC's own is 3e-4).")
+    actor_lr: float = setting(1e-5, "Actor learning rate (offline default: the xTED paper's; TD3's and "
+                                         "TD3+BC's own, online TD3's default: 3e-4).")
+    critic_lr: float = setting(1e-3, "Critic learning rate (offline default: the xTED paper's; TD3's and "
+                                          "TD3+BC's own, online TD3's default: 3e-4).")
     discount: float = setting(0.99, "Discount factor gamma.")
     tau: float = setting(0.005, "Polyak rate of the target networks.")
     alpha: float = setting(2.5, "Weight alpha of the Q term against behaviour cloning (TD3+BC Eq. 5); 0 is BC.")
