@@ -179,6 +179,25 @@ def test_cross_wiring(tiny_model):
     assert dataclasses.replace(TINY.denoiser, use_reward=False).cross_wiring == CROSS_WIRING[:2]
 
 
+def test_more_cross_rounds_add_blocks_after_the_first_and_keep_rewards_out_of_states_and_actions():
+    cfg = dataclasses.replace(TINY.denoiser, cross_blocks=2)
+    model = Denoiser(cfg)
+    s, a, r, t, returns = _inputs(cfg)
+    shapes = jax.eval_shape(model.init, jax.random.key(0), s, a, r, t, returns)["params"]
+    one_round = jax.eval_shape(Denoiser(TINY.denoiser).init, jax.random.key(0), s, a, r, t, returns)["params"]
+    assert set(shapes) - set(one_round) == {"state_cross_1", "action_cross_1", "reward_cross_1"}
+    # the first round keeps its names, so a one-round prior's parameters are a subtree of these
+    assert jax.tree.structure(shapes["state_cross"]) == jax.tree.structure(one_round["state_cross"])
+    params = random_params({"params": shapes})
+    apply = jax.jit(lambda s, a, r: model.apply(params, s, a, r, t, returns))
+    base, bumped = apply(s, a, r), apply(s, a, r.at[:, 1:].add(1.0))
+    np.testing.assert_array_equal(bumped[0], base[0])
+    np.testing.assert_array_equal(bumped[1], base[1])
+    assert not np.allclose(bumped[2], base[2])
+    with pytest.raises(InputError, match="cross_blocks"):
+        dataclasses.replace(TINY, cross_blocks=0)
+
+
 @pytest.mark.parametrize("architecture", ["causal", "feature_concat", "temporal_concat", "temporal_unet"])
 def test_ablation_architectures(architecture):
     cfg = dataclasses.replace(TINY.denoiser, architecture=architecture)

@@ -62,6 +62,8 @@ class DenoiserConfig:
     state_blocks: int = setting(2, "Self-attention blocks of the state stream.")
     action_blocks: int = setting(2, "Self-attention blocks of the action stream.")
     reward_blocks: int = setting(1, "Self-attention blocks of the reward stream.")
+    cross_blocks: int = setting(1, "Rounds of the cross-attention wiring after the self-attention blocks "
+                                   "(xted and causal; the paper: 1).")
     num_heads: int = setting(4, "Attention heads (reduced to a divisor of each stream's width).")
     mlp_ratio: int = setting(4, "Hidden width of each block's MLP, as a multiple of the stream width.")
     cond_dim: int = setting(128, "Width of the noise-step (and return) condition embedding.")
@@ -138,6 +140,7 @@ class PriorConfig(DenoiserConfig):
         checks = [
             (self.state_dim >= 1 and self.action_dim >= 1, "state_dim and action_dim must be >= 1"),
             (self.horizon >= 2, f"horizon must be >= 2, got {self.horizon}"),
+            (self.cross_blocks >= 1, f"cross_blocks must be >= 1, got {self.cross_blocks}"),
             (self.num_timesteps >= 1, f"num_timesteps must be >= 1, got {self.num_timesteps}"),
             (self.seed >= 0, f"seed must be >= 0, got {self.seed}"),
             (self.batch_size >= 1, f"batch_size must be >= 1, got {self.batch_size}"),

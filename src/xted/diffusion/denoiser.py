@@ -2,8 +2,9 @@
 
 Each stream (state, action, reward) is encoded separately (2-layer MLP + learned positional
 embedding), runs its own adaLN-conditioned self-attention blocks over the horizon, is updated
-once by a cross-attention block following :data:`CROSS_WIRING`, and is decoded separately into
-its predicted noise. The condition embedding ``e = f_c(k, R)`` is one global vector per sample.
+once by a cross-attention block following :data:`CROSS_WIRING` (``cross_blocks`` rounds of it,
+each reading the round before, where the paper has one), and is decoded separately into its
+predicted noise. The condition embedding ``e = f_c(k, R)`` is one global vector per sample.
 
 Heads: a stream of width ``w`` uses ``gcd(num_heads, w)`` heads, the largest divisor of
 ``num_heads`` that divides ``w`` (4 of 4 for the paper's widths 16·17, 16·6 and 16·1).
@@ -232,12 +233,15 @@ def _streams(cfg: DenoiserConfig, inputs: dict[str, jnp.ndarray], e: jnp.ndarray
     for s in cfg.streams:
         x = Encoder(cfg.width(s), cfg.horizon, dtype, name=f"{s}_encoder")(inputs[s])
         h[s] = _self_blocks(cfg, s, x, e, cfg.blocks(s), _causal_mask(times, times) if causal else None, dtype)
-    crossed = dict(h)
-    for s, attended in cfg.cross_wiring:
-        mask = _causal_mask(times, jnp.tile(times, len(attended))) if causal else None
-        block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, name=f"{s}_cross")
-        crossed[s] = block(h[s], [h[a] for a in attended], e, mask)
-    return {s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(crossed[s]) for s in cfg.streams}
+    for round_ in range(cfg.cross_blocks):
+        crossed = dict(h)
+        for s, attended in cfg.cross_wiring:
+            mask = _causal_mask(times, jnp.tile(times, len(attended))) if causal else None
+            name = f"{s}_cross" if round_ == 0 else f"{s}_cross_{round_}"
+            block = CrossAttentionBlock(cfg.width(s), cfg.heads(s), cfg.mlp_ratio, dtype, name=name)
+            crossed[s] = block(h[s], [h[a] for a in attended], e, mask)
+        h = crossed
+    return {s: Decoder(cfg.width(s), cfg.element_dim(s), dtype, name=f"{s}_decoder")(h[s]) for s in cfg.streams}
 
 
 def _split_joint(cfg: DenoiserConfig, joint: jnp.ndarray) -> dict:
