@@ -471,8 +471,6 @@ def test_the_committed_lite_table_is_found_under_today_s_cell_keys(env):
     from xted.pipelines.bench.report import task_rows
 
     store = Path(__file__).parent.parent / BenchConfig.store
-    # walker2d's targets were re-shipped (a stronger medium policy), so only its source-only cells,
-    # which read no target data, stand until its grid is rerun.
-    columns = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE) if env == "halfcheetah" else (SRC,)
+    columns = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE)
     rows = task_rows(env, "medium-replay", "thigh", columns, str(store))
     assert [row["n_seeds"] for row in rows] == [5] * len(columns), rows
