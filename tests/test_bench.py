@@ -240,6 +240,23 @@ def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
     assert all(c.data_cell.prior_cell is None for c in shipped_prior.learners.values())
 
 
+def test_prior_set_changes_the_trained_prior_of_its_env_only():
+    config = BenchConfig(envs=("halfcheetah", "walker2d"), targets=("medium",), gaps=("thigh",), columns=("Tgt+Edited",),
+                         seeds=(0,))
+    def priors(**changes):
+        return {cell.env: cell.data_cell.prior_cell for cell in plan(dataclasses.replace(config, **changes)).learners.values()}
+
+    default = priors()
+    scoped = priors(prior_overrides=("walker2d:cross_blocks=2",))
+    assert scoped["halfcheetah"].key == default["halfcheetah"].key
+    assert scoped["walker2d"].key != default["walker2d"].key
+    assert (scoped["walker2d"].config.cross_blocks, default["walker2d"].config.cross_blocks) == (2, 1)
+    both = priors(prior_overrides=("cross_blocks=2",))
+    assert both["walker2d"].key == scoped["walker2d"].key and both["halfcheetah"].key != default["halfcheetah"].key
+    assert {c.data_cell.key for c in plan(config).learners.values()} != {
+        c.data_cell.key for c in plan(dataclasses.replace(config, prior_overrides=("cross_blocks=2",))).learners.values()}
+
+
 def test_projected_edits_are_keyed_apart_and_projected_onto_a_model_of_the_row_s_target(tmp_path, monkeypatch):
     """--project-dynamics: the edit cell names the dynamics model (the row's target, the proxy's
     settings) and the weight; the plain edit's key is unchanged by the weight. The cell's edit is
@@ -313,6 +330,34 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     assert "| 15.0 ± 5.0 [-48.5, 78.5] | — | 30.0 ± 0.0 (+100.0%) |" in table
     assert "| iql | P(improvement) | Tgt+Edited > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
     assert png.is_file()
+
+
+def test_report_sets_the_paper_s_cells_under_each_line_and_its_total_over_the_same_rows(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh", "friction"), columns=("Tgt", "Tgt+Edited", "Tgt+Oracle"))
+    write_hand_made_results(config, {"Tgt": [10.0, 20.0]})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh,friction", "--columns", "Tgt,Tgt+Edited,Tgt+Oracle",
+               "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1",
+               "--transitions", "200", "--store", config.store, "--cache", config.cache, "--report"]
+    assert main(["bench", *options, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [row["paper"] for row in rows[:3]] == [{"mean": 26.2, "std": 3.5}, {"mean": 33.0, "std": 3.0}, None]
+    assert main(["bench", *options, "--paper"]) == 0
+    table = capsys.readouterr().out
+    assert "| | | | paper | 26.2 ± 3.5 | 33.0 ± 3.0 (+26.0%) | — |" in table  # HC-MR thigh, Table 1
+    assert "| | | | paper | 26.2 ± 3.5 | 31.8 ± 3.1 (+21.4%) | — |" in table  # HC-MR friction
+    assert "| Total | | | paper | 52.4 | 64.8 (+23.7%) | — |" in table
+    assert main(["bench", *options]) == 0
+    assert "paper" not in capsys.readouterr().out
+
+
+def test_the_paper_s_cells_sum_to_its_printed_totals():
+    from xted.pipelines.bench.paper import _TABLES, PAPER_COLUMNS, PRINTED_TOTALS
+
+    sums = {column: round(sum(cells[i][0] for cells in _TABLES.values()), 1) for i, column in enumerate(PAPER_COLUMNS)}
+    assert len(_TABLES) == 18
+    assert {c: sums[c] for c in PAPER_COLUMNS[:4]} == {c: PRINTED_TOTALS[c] for c in PAPER_COLUMNS[:4]}
+    # Table 2 prints totals 2.2 and 1.0 above what its cells sum to (734.2, 824.2).
+    assert (sums["Tgt+Src DARA"], sums["Tgt+Edited DARA"]) == (732.0, 823.2)
 
 
 def test_report_cost_shares_each_group_s_time_among_its_seeds_and_counts_a_shared_edit_once(tmp_path, capsys):
@@ -408,6 +453,9 @@ def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaul
     ("--envs", "hopper", "unknown env 'hopper'"),
     ("--seeds", "0,0", "--seeds"),
     ("--prior-preset", "huge", "unknown prior preset 'huge'"),
+    ("--prior-set", "hopper:cross_blocks=2", "'hopper' is not an env in the grid"),
+    ("--prior-set", "cross_blocks", "expected FIELD=VALUE or ENV:FIELD=VALUE"),
+    ("--prior-set", "walker2d:wings=2", "wings"),
 ])
 def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
     assert main(["bench", option, value, "--store", str(tmp_path / "store"), "--report"]) == 2

@@ -72,6 +72,9 @@ def bench(
                                     help="Training steps of a prior the bench trains (a target with none shipped or given)."),
     prior_preset: str = typer.Option(DEFAULTS.prior_preset, "--prior-preset",
                                      help="Preset of a prior the bench trains: cpu or paper."),
+    prior_overrides: List[str] = typer.Option(
+        [], "--prior-set", help="PriorConfig override of a prior the bench trains: FIELD=VALUE for every env, "
+        "ENV:FIELD=VALUE for one (repeatable; xted train --set's fields)."),
     transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions", min=1,
                                               help="Use only the first N transitions of every dataset."),
     store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
@@ -85,6 +88,8 @@ def bench(
         "(benchmarks/edit_quality.py --out), rows of the grid's envs and gaps, checked against the edit targets."),
     curves: bool = typer.Option(False, "--curves", help="With --report: also print each row's learning curve "
                                 "(mean ± std over seeds at every evaluation)."),
+    paper: bool = typer.Option(False, "--paper", help="With --report: under each line of the table the paper's cells "
+                               "(its Tables 1 and 2, IQL), and the paper's totals over the same rows."),
     cost: bool = typer.Option(False, "--cost", help="With --report: also print the wall-clock hours each group of "
                               "seeds, edit, oracle and bench-trained prior took (the JSON always has them)."),
     executor: str = typer.Option("local", "--executor",
@@ -109,10 +114,10 @@ def bench(
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
         project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
         priors=tuple(priors), prior_steps=prior_steps,
-        prior_preset=prior_preset, transitions=transitions, store=str(store),
+        prior_preset=prior_preset, prior_overrides=tuple(prior_overrides), transitions=transitions, store=str(store),
         cache=str(cache))
-    if (as_json or png is not None or curves or cost or edit_quality) and not report:
-        raise InputError("--json, --png, --curves, --cost and --edit-quality go with --report")
+    if (as_json or png is not None or curves or cost or paper or edit_quality) and not report:
+        raise InputError("--json, --png, --curves, --cost, --paper and --edit-quality go with --report")
     ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
                       gpus_per_task=gpus_per_task)
     if not report:
@@ -149,7 +154,7 @@ def bench(
                                **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
                                   if edit_quality else {})}))
     else:
-        sections = [markdown(rows), aggregate_markdown(rows), curves_markdown(rows) if curves else "",
+        sections = [markdown(rows, paper), aggregate_markdown(rows), curves_markdown(rows) if curves else "",
                     cost_markdown(cost_rows(grid)) if cost else "",
                     edit_quality_markdown(quality) if quality else ""]
         typer.echo("\n\n".join(section for section in sections if section))

@@ -25,7 +25,8 @@ class BenchConfig:
     --project-dynamics TARGET``, ``dynamics_proxy_steps`` Adam steps); ``overrides``: the algorithm
     config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
-    one, else one the bench trains: ``prior_steps`` of the ``prior_preset``); ``transitions``: use
+    one, else one the bench trains: ``prior_steps`` of the ``prior_preset`` with ``prior_overrides``,
+    PriorConfig's ``FIELD=VALUE`` for every env or ``ENV:FIELD=VALUE`` for one); ``transitions``: use
     only the first N transitions of every dataset (a quick look at the protocol; None: all)."""
 
     envs: tuple[str, ...] = ("halfcheetah", "walker2d")
@@ -46,6 +47,7 @@ class BenchConfig:
     transitions: int | None = None
     prior_steps: int = 20_000
     prior_preset: str = "cpu"
+    prior_overrides: tuple[str, ...] = ()
     store: str = "benchmarks/results/bench"
     cache: str = "runs/bench-cache"
 
@@ -67,6 +69,21 @@ class BenchConfig:
         for pair in self.priors:
             if "=" not in pair:
                 raise InputError(f"--prior {pair!r}: expected ENV=PATH or ENV-TARGET=PATH")
+        for pair in self.prior_overrides:
+            if "=" not in pair:
+                raise InputError(f"--prior-set {pair!r}: expected FIELD=VALUE or ENV:FIELD=VALUE")
+
+    def prior_overrides_for(self, env: str) -> list[str]:
+        """The ``--prior-set`` pairs that apply to ``env``'s bench-trained priors: the unprefixed
+        ones and those prefixed ``ENV:``, in the order given."""
+        pairs = []
+        for pair in self.prior_overrides:
+            scope, colon, rest = pair.partition(":")
+            if not colon or "=" in scope:
+                pairs.append(pair)
+            elif scope == env:
+                pairs.append(rest)
+        return pairs
 
     def prior_paths(self) -> dict[str, str]:
         """``--prior`` pairs as ``{ENV or ENV-TARGET: PATH}``."""

@@ -205,6 +205,15 @@ def check_names(config: BenchConfig) -> None:
     for key in config.prior_paths():
         if key.split("-", 1)[0] not in config.envs:
             raise InputError(f"--prior {key}=...: {key!r} is not ENV or ENV-TARGET of an env in the grid")
+    for pair in config.prior_overrides:
+        scope, colon, _ = pair.partition(":")
+        if colon and "=" not in scope and scope not in config.envs:
+            raise InputError(f"--prior-set {pair!r}: {scope!r} is not an env in the grid")
+    for env in config.envs:
+        try:
+            apply_overrides(prior_preset(config.prior_preset, 1, 1), config.prior_overrides_for(env))
+        except InputError as err:
+            raise InputError(str(err).replace("--set ", "--prior-set ", 1)) from None
 
 
 def edit_identity(edit: EditConfig, projected: bool) -> dict:
@@ -258,7 +267,8 @@ def plan(config: BenchConfig) -> Grid:
     def prior_cell(env: str, target_level: str) -> PriorCell:
         target = f"{env}-{target_level}"
         data = dataset(target)
-        prior_config = prior_preset(config.prior_preset, data.observation_dim, data.action_dim, seed=PRIOR_SEED)
+        prior_config = apply_overrides(prior_preset(config.prior_preset, data.observation_dim, data.action_dim,
+                                                    seed=PRIOR_SEED), config.prior_overrides_for(env))
         heldout = min(PRIOR_HELDOUT_EPISODES, data.num_episodes - 1)
         inputs = {"kind": "prior", "target": fingerprint(target), "config": prior_config.to_dict(),
                   "steps": config.prior_steps, "heldout_episodes": heldout}

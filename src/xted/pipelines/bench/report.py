@@ -14,19 +14,22 @@ from xted.analysis.stats import improvement_interval, iqm_interval, t_interval
 from xted.pipelines.bench import store
 from xted.pipelines.bench.config import TGT, TGT_EDITED, TGT_EDITED_DARA, TGT_SRC, TGT_SRC_DARA
 from xted.pipelines.bench.grid import Grid
+from xted.pipelines.bench.paper import paper_cell
 
 MISSING = "—"
 
 
 def table_rows(grid: Grid) -> list[dict]:
-    """Each row of the grid with the seeds' final scores found in the store."""
+    """Each row of the grid with the seeds' final scores found in the store, and the paper's cell
+    (``paper``: mean and std, None where it printed none)."""
     rows = []
     for row in grid.rows:
         results = [store.read_result(grid.config.store, cell) for cell in row.cells]
         found = [result for result in results if result is not None]
         scores = [result["final_score"] for result in found]
         rows.append({"env": row.env, "target": row.target, "gap": row.gap, "column": row.column, "algo": row.algo,
-                     **score_summary(scores), "scores": scores, "curve": learning_curve(found)})
+                     **score_summary(scores), "scores": scores, "curve": learning_curve(found),
+                     "paper": paper_cell(row.env, row.target, row.gap, row.column, row.algo)})
     return rows
 
 
@@ -99,9 +102,10 @@ def gain(value: float | None, baseline: float | None) -> str:
     return f" ({100 * (value - baseline) / abs(baseline):+.1f}%)"
 
 
-def markdown(rows: list[dict]) -> str:
+def markdown(rows: list[dict], paper: bool = False) -> str:
     """Columns side by side per env, target, gap and algo (mean ± std over seeds [95% t-interval]);
-    a Total line per algo (sums of means)."""
+    a Total line per algo (sums of means). ``paper``: under each line the paper's cells of it, and
+    under each Total the paper's over the same rows."""
     columns = list(dict.fromkeys(row["column"] for row in rows))
     lines: dict[tuple, dict[str, dict]] = {}
     for row in rows:
@@ -109,28 +113,40 @@ def markdown(rows: list[dict]) -> str:
     header = ["env", "target", "gap", "algo", *columns]
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for (env, target, gap, algo), found in lines.items():
-        baseline = found.get(TGT, {}).get("mean")
-        cells = []
-        for column in columns:
-            row = found.get(column)
-            if row is None or row["mean"] is None:
-                cells.append(MISSING)
-                continue
-            shown = f"{row['mean']:.1f} ± {row['std']:.1f}"
-            if row["ci95"] is not None:
-                shown += f" [{row['ci95'][0]:.1f}, {row['ci95'][1]:.1f}]"
-            cells.append(shown + (gain(row["mean"], baseline) if column.startswith(TGT + "+") else ""))
+        cells = [_shown(found.get(column), found.get(TGT), column) for column in columns]
         out.append("| " + " | ".join([env, target, gap, algo, *cells]) + " |")
+        if paper and any(row["paper"] for row in found.values()):
+            cells = [_shown(found[c]["paper"] if c in found else None, found.get(TGT, {}).get("paper"), c)
+                     for c in columns]
+            out.append("| | | | paper | " + " | ".join(cells) + " |")
     for algo in dict.fromkeys(row["algo"] for row in rows):
-        totals = {}
-        for column in columns:
-            means = [row["mean"] for row in rows if row["algo"] == algo and row["column"] == column]
-            totals[column] = None if None in means else float(sum(means))
-        cells = [MISSING if totals[c] is None else f"{totals[c]:.1f}" + (gain(totals[c], totals.get(TGT))
-                                                                          if c.startswith(TGT + "+") else "")
-                 for c in columns]
-        out.append("| Total | | | " + algo + " | " + " | ".join(cells) + " |")
+        mine = [row for row in rows if row["algo"] == algo]
+        out.append("| Total | | | " + algo + " | " + " | ".join(_totals(mine, columns)) + " |")
+        if paper and any(row["paper"] for row in mine):
+            out.append("| Total | | | paper | " + " | ".join(_totals([{**row, **(row["paper"] or {"mean": None})}
+                                                                      for row in mine], columns)) + " |")
     return "\n".join(out)
+
+
+def _shown(cell: dict | None, tgt: dict | None, column: str) -> str:
+    """One cell: mean ± std [interval where there is one], and its gain against Tgt in a mixed column."""
+    if cell is None or cell["mean"] is None:
+        return MISSING
+    shown = f"{cell['mean']:.1f} ± {cell['std']:.1f}"
+    if cell.get("ci95") is not None:
+        shown += f" [{cell['ci95'][0]:.1f}, {cell['ci95'][1]:.1f}]"
+    return shown + (gain(cell["mean"], (tgt or {}).get("mean")) if column.startswith(TGT + "+") else "")
+
+
+def _totals(rows: list[dict], columns: list[str]) -> list[str]:
+    """Per column the sum of the rows' means (missing where any row has none), with the gain against Tgt's."""
+    totals = {}
+    for column in columns:
+        means = [row["mean"] for row in rows if row["column"] == column]
+        totals[column] = None if None in means else float(sum(means))
+    return [MISSING if totals[c] is None else f"{totals[c]:.1f}" + (gain(totals[c], totals.get(TGT))
+                                                                     if c.startswith(TGT + "+") else "")
+            for c in columns]
 
 
 def curves_markdown(rows: list[dict]) -> str:
