@@ -18,7 +18,7 @@ from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.errors import InputError
 from xted.pipelines.bench import cells, grid, ray_executor, run, store
 from xted.diffusion.config import EditConfig
-from xted.pipelines.bench.config import COLUMNS, BenchConfig
+from xted.pipelines.bench.config import TABLE_COLUMNS, BenchConfig
 from xted.pipelines.bench.edit_quality import edit_label
 from xted.pipelines.bench.grid import first_transitions, plan
 from xted.pipelines.bench.run import CellsFailed, run_bench
@@ -159,6 +159,38 @@ def test_learner_results_record_the_edited_data(tmp_path, fake):
     assert result["training_data"][1] == edit["data_fingerprint"]
     assert result["edit_key"] == cell.data_cell.key and result["column"] == "Tgt+Edited"
     assert store.data_path(config.cache, cell.data_cell).is_file()
+
+
+AUGMENTED = ("Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL")
+
+
+def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_gap_s_row(tmp_path, fake):
+    config = tiny_config(tmp_path, columns=("Tgt", "Tgt+Edited", *AUGMENTED))
+    planned = plan(config)
+    rows = {(row.gap, row.column): row for row in planned.rows}
+    made = {}
+    for column in AUGMENTED:
+        thigh, gravity = rows["thigh", column].cells, rows["gravity", column].cells
+        assert [c.key for c in thigh] == [c.key for c in gravity] and thigh[0].gap is None
+        data = made[column] = thigh[0].data_cell
+        assert (data.source, data.gap, thigh[0].training[0]) == ("halfcheetah-medium-replay", None,
+                                                                 "halfcheetah-medium-replay")
+    assert (made["Tgt (Edit)"].edit.kappa, made["Tgt (Edit)"].edit.hold_first) == (1.0, True)
+    assert (made["Tgt (Gen)"].edit.kappa, made["Tgt (Gen)"].edit.hold_first) == (1.0, False)
+    assert made["Tgt S4RL"].kind == "s4rl" and len({cell.key for cell in made.values()}) == 3
+    lite = plan(dataclasses.replace(config, columns=("Tgt", "Tgt+Edited")))
+    assert {c.key for c in lite.learners.values()} < {c.key for c in planned.learners.values()}
+
+    computed = run_quietly(config)
+    # 3 data cells made from the target, 2 edits of the sources; Tgt, the 3 augmentations and 2 Tgt+Edited, x 2 seeds
+    assert len(computed) == 3 + 2 + (1 + 3 + 2) * 2 and len(fake.calls) == 6
+    target = planned.datasets["halfcheetah-medium-replay"]
+    copy = load(store.data_path(config.cache, made["Tgt S4RL"]))
+    noise = copy.observations - target.observations
+    assert 2e-4 < noise.std() < 4e-4 and np.abs(noise).max() < 3e-3
+    np.testing.assert_array_equal(copy.actions, target.actions)
+    result = store.read_result(config.store, rows["thigh", "Tgt S4RL"].cells[0])
+    assert result["final_score"] == (len(target) + len(copy)) / 100  # the fake scores by size: target + its copy
 
 
 def test_oracle_leaves_target_data_unchanged():
@@ -506,7 +538,7 @@ def test_an_edit_task_refuses_a_prior_folder_other_than_the_planned_one(tmp_path
 def test_default_grid_is_the_lite_table():
     config = BenchConfig()
     assert (config.envs, config.targets, config.gaps, config.columns, config.algos, config.seeds, config.steps) == (
-        ("halfcheetah", "walker2d"), ("medium-replay",), ("thigh", "gravity", "friction"), COLUMNS, ("iql",),
+        ("halfcheetah", "walker2d"), ("medium-replay",), ("thigh", "gravity", "friction"), TABLE_COLUMNS, ("iql",),
         (0, 1, 2, 3, 4), 30_000)
 
 

@@ -141,6 +141,23 @@ def test_edited_episodes_are_stitched(source, edited):
     assert not np.allclose(result.next_observations[-1], source.next_observations[-1])  # the final state is edited
 
 
+def test_without_the_held_first_transition_episodes_are_generated_and_still_stitched(prior, source):
+    """hold_first=False at kappa 1 (the paper's Tgt (Gen)): each episode's first transition is made
+    too, and every later window still starts where the one before ended."""
+    result, _ = edit_dataset(prior, source, EditConfig(kappa=1.0, hold_first=False, batch_size=BATCH, seed=0))
+    held, _ = edit_dataset(prior, source, EditConfig(kappa=1.0, batch_size=BATCH, seed=0))
+    for start, end in result.episode_bounds():
+        if end - start + 1 < H:
+            continue
+        for name in ("observations", "actions", "rewards"):
+            assert not np.isclose(getattr(result, name)[start], getattr(source, name)[start]).all(), name
+            np.testing.assert_array_equal(getattr(held, name)[start], getattr(source, name)[start])
+        np.testing.assert_array_equal(result.next_observations[start:end - 1], result.observations[start + 1:end])
+    windows = _windows()
+    free = edit_windows(prior, *windows, EditConfig(hold_first=False), jax.random.key(0))
+    assert not np.isclose(np.asarray(free[0])[:, 0], windows[0][:, 0]).all()
+
+
 def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keeps_the_stitching(prior, source, edited):
     """With ``dynamics`` at weight 1, each edited next state is the model's prediction for the edited (state,
     action); episodes stay one sequence at every weight, and the actions are still the prior's edit."""

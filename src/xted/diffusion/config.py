@@ -191,10 +191,13 @@ class EditConfig:
     noise its steps add (0: deterministic). ``clip_denoised``: bound for the predicted ``x_0`` (normalised
     units) or None. ``hold_actions``: keep every source action and denoise states (and rewards)
     around them, as the first transition is held (inpainting), so the edit changes what the
-    actions lead to, not the actions (an ablation)."""
+    actions lead to, not the actions (an ablation). ``hold_first`` false with ``kappa = 1``
+    generates episodes from pure noise (the paper's single-domain ``Tgt (Gen)``, its §5.4)."""
 
     kappa: float = setting(0.5, "Noise to step k = kappa*K, then denoise k steps.")
     iterations: int = setting(1, "Repeated noise+denoise rounds.")
+    hold_first: bool = setting(True, "Hold each episode's first transition (false: generate it too; later "
+                                     "windows stay stitched to the one before).")
     hold_last: bool = setting(False, "Hold the last transition of each window too.")
     hold_actions: bool = setting(False, "Keep every source action; edit states (and rewards) around them.")
     guidance: float = setting(0.0, "Classifier-free return guidance weight (0: unconditional, as the paper's Table 1).")

@@ -129,9 +129,11 @@ def _noise(keys: jnp.ndarray, path: tuple[Any, ...], like: jnp.ndarray) -> jnp.n
 
 @functools.partial(jax.jit, static_argnames=("plan",))
 def _edit(
-    params: Any, schedule: Schedule, x0: dict[str, jnp.ndarray], keys: jnp.ndarray, returns: jnp.ndarray, plan: _Plan
+    params: Any, schedule: Schedule, x0: dict[str, jnp.ndarray], keys: jnp.ndarray, returns: jnp.ndarray,
+    held_first: jnp.ndarray, plan: _Plan
 ) -> dict[str, jnp.ndarray]:
-    """Noise ``x0`` to ``timesteps[0]`` and run the reverse chain over ``timesteps``, ``iterations`` times.
+    """Noise ``x0`` to ``timesteps[0]`` and run the reverse chain over ``timesteps``, ``iterations`` times,
+    holding the first transition of the windows where ``held_first`` ``[B]`` is true.
 
     Inv runs the chain over states alone, then its inverse models give the actions and rewards of
     every transition but the held ones."""
@@ -141,7 +143,7 @@ def _edit(
     ts_prev = jnp.concatenate([ts[1:], jnp.array([-1], jnp.int32)])
 
     def hold(x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
-        out = {s: x[s].at[:, 0].set(x0[s][:, 0]) for s in streams}
+        out = {s: x[s].at[:, 0].set(jnp.where(held_first[:, None], x0[s][:, 0], x[s][:, 0])) for s in streams}
         if plan.hold_last:
             out = {s: out[s].at[:, -1].set(x0[s][:, -1]) for s in streams}
         if plan.hold_actions and "action" in out:
@@ -180,15 +182,19 @@ def _edit(
     return out
 
 
-def _editor(prior: Prior, config: EditConfig) -> Callable[[dict[str, np.ndarray], jnp.ndarray], dict[str, jnp.ndarray]]:
-    """``(normalised windows per stream, per-window keys) -> edited windows`` for this prior and config."""
+def _editor(prior: Prior, config: EditConfig
+            ) -> Callable[[dict[str, np.ndarray], jnp.ndarray, np.ndarray | None], dict[str, jnp.ndarray]]:
+    """``(normalised windows per stream, per-window keys, windows continuing an edited one or None)
+    -> edited windows`` for this prior and config: a window holds its first transition where it
+    continues one or ``config.hold_first``."""
     plan = _plan(prior, config)
     schedule = prior.schedule
 
-    def run(x: dict[str, np.ndarray], keys: jnp.ndarray) -> dict[str, jnp.ndarray]:
+    def run(x: dict[str, np.ndarray], keys: jnp.ndarray, continued: np.ndarray | None = None) -> dict[str, jnp.ndarray]:
         returns = jnp.full((keys.shape[0],), config.target_return, jnp.float32)
         x = {s: jnp.asarray(v, jnp.float32) for s, v in x.items()}
-        return _edit(prior.params, schedule, x, keys, returns, plan)
+        held = np.full(keys.shape[0], config.hold_first) | (False if continued is None else continued)
+        return _edit(prior.params, schedule, x, keys, returns, jnp.asarray(held), plan)
 
     return run
 
@@ -309,7 +315,7 @@ def edit_dataset(
         for s in streams:
             x[s][stitched, 0] = edited[s][previous[stitched], carried[stitched]]
         keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
-        out = edit(x, keys)
+        out = edit(x, keys, stitched)
         if dynamics is not None:
             out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]),
                                             config.dynamics_weight)}

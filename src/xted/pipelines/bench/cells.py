@@ -1,4 +1,5 @@
-"""Computing each kind of cell: an edit, an oracle relabelling, and one group of learner seeds."""
+"""Computing each kind of cell: an edit, an oracle relabelling, an S4RL copy of the target, and one
+group of learner seeds."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from xted.analysis import fit_proxy
 from xted.data import Dataset, load
+from xted.data.augment import gaussian_copy
 from xted.diffusion.editor import edit_dataset
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
@@ -54,7 +56,11 @@ def oracle(env: str, gap: str, source: Dataset) -> Dataset:
 
 
 def make_data(cell: DataCell, source: Dataset) -> Dataset:
-    return edited(cell, source) if cell.kind == "edit" else oracle(cell.env, cell.gap, source)
+    if cell.kind == "edit":
+        return edited(cell, source)
+    if cell.kind == "s4rl":
+        return gaussian_copy(source, cell.inputs["state_std"], cell.inputs["seed"])
+    return oracle(cell.env, cell.gap, source)
 
 
 def train_group(cells: Sequence[LearnerCell], training: Sequence[Dataset], progress: bool) -> list[dict]:

@@ -10,9 +10,15 @@ from xted.errors import InputError
 # What a learner trains on, besides the target data it is evaluated against.
 SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA = (
     "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA", "Tgt+Edited DARA")
-COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA)
+TABLE_COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA)  # Tables 1 and 2
+# Single-domain augmentation (the paper's §5.4): the target plus as many transitions made from it.
+TGT_SELF_EDIT, TGT_GEN, TGT_S4RL = "Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL"
+AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL)
+COLUMNS = TABLE_COLUMNS + AUGMENT_COLUMNS
+TARGET_ONLY_COLUMNS = (TGT, *AUGMENT_COLUMNS)  # read no source: one cell per target, shared by its gaps' rows
 DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA)  # DARA's reward correction on the source's share: the paper's Table 2
 EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA)
+PRIOR_COLUMNS = (*EDITED_COLUMNS, TGT_SELF_EDIT, TGT_GEN)  # read a prior's output
 DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
 
 
@@ -32,7 +38,7 @@ class BenchConfig:
     envs: tuple[str, ...] = ("halfcheetah", "walker2d")
     targets: tuple[str, ...] = ("medium-replay",)
     gaps: tuple[str, ...] = ("thigh", "gravity", "friction")
-    columns: tuple[str, ...] = COLUMNS
+    columns: tuple[str, ...] = TABLE_COLUMNS
     algos: tuple[str, ...] = ("iql",)
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     steps: int = 30_000

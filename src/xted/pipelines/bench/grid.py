@@ -7,11 +7,11 @@ whose inputs changed; planning is cheap (shipped data is small), so the report p
 reads exactly the current cells.
 
 Kinds of cell: a *prior* (trained by the bench for a target with no prior shipped or given), an
-*edit* (a source edited with a prior) and an *oracle* (a source relabelled by the target
-simulator) make what learners read; a *learner* trains one algorithm with one seed on target
-and/or source data. A learner that reads an edit or an oracle, and an edit that reads a prior the
-bench trains, names that cell's key, not its output's fingerprint, so the key is known before
-the output is made.
+*edit* (a source, or the target itself, edited with a prior), an *oracle* (a source relabelled by
+the target simulator) and an *s4rl* copy (the target with Gaussian state noise) make what
+learners read; a *learner* trains one algorithm with one seed on target and/or source data. A
+learner that reads an edit or an oracle, and an edit that reads a prior the bench trains, names
+that cell's key, not its output's fingerprint, so the key is known before the output is made.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from typing import Any
 from xted.analysis.config import ProxyConfig
 from xted.fields import apply_overrides
 from xted.data import Dataset, load, shipped
+from xted.data.augment import S4RL_STATE_STD
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.config import preset as prior_preset
 from xted.diffusion.config import presets as prior_presets
@@ -36,12 +37,16 @@ from xted.errors import InputError
 from xted.pipelines.bench.config import (
     DARA_BACKBONE,
     DARA_COLUMNS,
-    EDITED_COLUMNS,
+    PRIOR_COLUMNS,
     SRC,
+    TARGET_ONLY_COLUMNS,
     TGT,
     TGT_EDITED,
     TGT_EDITED_DARA,
+    TGT_GEN,
     TGT_ORACLE,
+    TGT_S4RL,
+    TGT_SELF_EDIT,
     TGT_SRC,
     TGT_SRC_DARA,
     BenchConfig,
@@ -55,6 +60,7 @@ SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LE
 # and starts from seed 0, as the shipped ones.
 PRIOR_HELDOUT_EPISODES = 2
 PRIOR_SEED = 0
+AUGMENT_SEED = 0  # the noise of the S4RL copy
 
 
 def cell_key(inputs: dict) -> str:
@@ -114,7 +120,8 @@ class DynamicsModel:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class DataCell:
-    """An edit (``target`` is the prior's target level) or an oracle relabelling of one source."""
+    """An edit (``target`` is the prior's target level) or an oracle relabelling of one source; with
+    ``gap`` None, data made from the target itself (an edit of it, or its ``s4rl`` copy)."""
 
     kind: str  # "edit" or "oracle"
     env: str
@@ -218,11 +225,13 @@ def check_names(config: BenchConfig) -> None:
 
 def edit_identity(edit: EditConfig, projected: bool) -> dict:
     """What makes two of the bench's edits the same: the edit config, without ``dynamics_weight``
-    where the edit is not projected (the weight changes nothing then, and cells keyed before the
-    field existed keep their keys)."""
+    where the edit is not projected (the weight changes nothing then), and without ``hold_first``
+    where it holds (cells keyed before either field existed keep their keys)."""
     fields = dataclasses.asdict(edit)
     if not projected:
         fields.pop("dynamics_weight")
+    if edit.hold_first:
+        fields.pop("hold_first")
     return fields
 
 
@@ -275,9 +284,12 @@ def plan(config: BenchConfig) -> Grid:
         cell = PriorCell(env, target_level, target, prior_config, config.prior_steps, heldout, "", inputs, cell_key(inputs))
         return dataclasses.replace(cell, folder=str(Path(config.cache) / env / cell.name))
 
-    def data_cell(kind: str, env: str, gap: str, target: str | None = None, prior: Path | PriorCell | None = None
-                  ) -> DataCell:
-        source = f"{env}-{gap}"
+    def data_cell(kind: str, env: str, gap: str | None, target: str | None = None,
+                  prior: Path | PriorCell | None = None, augment: EditConfig | None = None) -> DataCell:
+        """An edit or oracle of the ``gap`` source; with ``gap`` None, data made from the target
+        itself: an edit with the ``augment`` config (never projected) or an ``s4rl`` copy."""
+        source = f"{env}-{gap}" if gap is not None else f"{env}-{target}"
+        this_edit = augment or edit
         trained = prior if isinstance(prior, PriorCell) else None
         dynamics = None
         if kind == "edit":
@@ -287,35 +299,46 @@ def plan(config: BenchConfig) -> Grid:
                 meta = read_prior_json(prior / "prior.json")
                 check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
                 identity = folder_fingerprint(prior)
-            projected = config.project_dynamics
+            projected = config.project_dynamics and augment is None
             inputs = {"kind": kind, "source": fingerprint(source), "prior": identity,
-                      "edit": edit_identity(edit, projected)}
+                      "edit": edit_identity(this_edit, projected)}
             if projected:
                 dynamics = DynamicsModel(f"{env}-{target}", config.transitions,
                                          ProxyConfig(steps=config.dynamics_proxy_steps, seed=edit.seed))
                 inputs["dynamics"] = {"target": fingerprint(dynamics.target), "proxy": dataclasses.asdict(dynamics.proxy)}
+        elif kind == "s4rl":
+            inputs = {"kind": kind, "source": fingerprint(source), "state_std": S4RL_STATE_STD, "seed": AUGMENT_SEED}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
             if math.isfinite(observation_velocity_clip(parse_domain(env))):
                 # Only where observations clip does the recovery change the relabelling (and the key).
                 inputs["states_at_velocity_clip"] = "recovered by replaying the source"
         return DataCell(kind, env, gap, source, target, None if prior is None else str(prior),
-                        edit if kind == "edit" else None, inputs, cell_key(inputs), trained, dynamics)
+                        this_edit if kind == "edit" else None, inputs, cell_key(inputs), trained, dynamics)
 
+    # The paper's §5.4: Tgt (Edit) noises the target all the way (kappa 1) and denoises it from its
+    # held first transitions; Tgt (Gen) holds nothing, generating from pure noise.
+    augments = {TGT_SELF_EDIT: dataclasses.replace(edit, kappa=1.0),
+                TGT_GEN: dataclasses.replace(edit, kappa=1.0, hold_first=False)}
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
     for env in config.envs:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
-            if set(EDITED_COLUMNS) & set(config.columns):
+            if set(PRIOR_COLUMNS) & set(config.columns):
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
+            augmented = {column: data_cell("edit", env, None, target_level, prior, augment)
+                         for column, augment in augments.items() if column in config.columns and prior is not None}
+            if TGT_S4RL in config.columns:
+                augmented[TGT_S4RL] = data_cell("s4rl", env, None, target_level)
             for gap in config.gaps:
                 source = f"{env}-{gap}"
                 trainings: dict[str, tuple[str | DataCell, ...] | None] = {
                     SRC: (source,), TGT: (target,), TGT_SRC: (target, source), TGT_SRC_DARA: (target, source),
                     TGT_EDITED: None if prior is None else (target, data_cell("edit", env, gap, target_level, prior)),
                     TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
+                    **{column: (target, cell) for column, cell in augmented.items()},
                 }
                 trainings[TGT_EDITED_DARA] = trainings[TGT_EDITED]
                 for algo in config.algos:
@@ -323,7 +346,7 @@ def plan(config: BenchConfig) -> Grid:
                     for column in config.columns:
                         if column in DARA_COLUMNS and dara is None:
                             continue
-                        training = trainings[column]
+                        training = trainings.get(column)
                         cells = []
                         for seed in config.seeds if training is not None else ():
                             algo_config = dara if column in DARA_COLUMNS else learner
@@ -334,7 +357,8 @@ def plan(config: BenchConfig) -> Grid:
                                       "seed": seed}
                             key = cell_key(inputs)
                             cell = learners.setdefault(key, LearnerCell(
-                                env, None if column == SRC else target_level, None if column == TGT else gap,
+                                env, None if column == SRC else target_level,
+                                None if column in TARGET_ONLY_COLUMNS else gap,
                                 column, algo, seed, algo_config, training, inputs, key))
                             cells.append(cell)
                         rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))

@@ -135,7 +135,7 @@ def _shown(cell: dict | None, tgt: dict | None, column: str) -> str:
     shown = f"{cell['mean']:.1f} ± {cell['std']:.1f}"
     if cell.get("ci95") is not None:
         shown += f" [{cell['ci95'][0]:.1f}, {cell['ci95'][1]:.1f}]"
-    return shown + (gain(cell["mean"], (tgt or {}).get("mean")) if column.startswith(TGT + "+") else "")
+    return shown + (gain(cell["mean"], (tgt or {}).get("mean")) if _against_tgt(column) else "")
 
 
 def _totals(rows: list[dict], columns: list[str]) -> list[str]:
@@ -145,8 +145,13 @@ def _totals(rows: list[dict], columns: list[str]) -> list[str]:
         means = [row["mean"] for row in rows if row["column"] == column]
         totals[column] = None if None in means else float(sum(means))
     return [MISSING if totals[c] is None else f"{totals[c]:.1f}" + (gain(totals[c], totals.get(TGT))
-                                                                     if c.startswith(TGT + "+") else "")
+                                                                     if _against_tgt(c) else "")
             for c in columns]
+
+
+def _against_tgt(column: str) -> bool:
+    """A column that adds data to Tgt's (a source's, or made from the target): shown with its gain."""
+    return column != TGT and column.startswith(TGT)
 
 
 def curves_markdown(rows: list[dict]) -> str:
