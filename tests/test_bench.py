@@ -161,11 +161,11 @@ def test_learner_results_record_the_edited_data(tmp_path, fake):
     assert store.data_path(config.cache, cell.data_cell).is_file()
 
 
-AUGMENTED = ("Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL")
+AUGMENTED = ("Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER")
 
 
 def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_gap_s_row(tmp_path, fake):
-    config = tiny_config(tmp_path, columns=("Tgt", "Tgt+Edited", *AUGMENTED))
+    config = tiny_config(tmp_path, columns=("Tgt", "Tgt+Edited", *AUGMENTED), ser_steps=3)
     planned = plan(config)
     rows = {(row.gap, row.column): row for row in planned.rows}
     made = {}
@@ -177,13 +177,14 @@ def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_
                                                                  "halfcheetah-medium-replay")
     assert (made["Tgt (Edit)"].edit.kappa, made["Tgt (Edit)"].edit.hold_first) == (1.0, True)
     assert (made["Tgt (Gen)"].edit.kappa, made["Tgt (Gen)"].edit.hold_first) == (1.0, False)
-    assert made["Tgt S4RL"].kind == "s4rl" and len({cell.key for cell in made.values()}) == 3
+    assert (made["Tgt S4RL"].kind, made["Tgt SER"].kind) == ("s4rl", "ser") and len({c.key for c in made.values()}) == 4
+    assert plan(dataclasses.replace(config, ser_steps=4)).rows[-1].cells[0].data_cell.key != made["Tgt SER"].key
     lite = plan(dataclasses.replace(config, columns=("Tgt", "Tgt+Edited")))
     assert {c.key for c in lite.learners.values()} < {c.key for c in planned.learners.values()}
 
     computed = run_quietly(config)
-    # 3 data cells made from the target, 2 edits of the sources; Tgt, the 3 augmentations and 2 Tgt+Edited, x 2 seeds
-    assert len(computed) == 3 + 2 + (1 + 3 + 2) * 2 and len(fake.calls) == 6
+    # 4 data cells made from the target, 2 edits of the sources; Tgt, the 4 augmentations and 2 Tgt+Edited, x 2 seeds
+    assert len(computed) == 4 + 2 + (1 + 4 + 2) * 2 and len(fake.calls) == 7
     target = planned.datasets["halfcheetah-medium-replay"]
     copy = load(store.data_path(config.cache, made["Tgt S4RL"]))
     noise = copy.observations - target.observations
@@ -191,6 +192,8 @@ def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_
     np.testing.assert_array_equal(copy.actions, target.actions)
     result = store.read_result(config.store, rows["thigh", "Tgt S4RL"].cells[0])
     assert result["final_score"] == (len(target) + len(copy)) / 100  # the fake scores by size: target + its copy
+    generated = load(store.data_path(config.cache, made["Tgt SER"]))
+    assert len(generated) == len(target) and generated.metadata["generated"]["config"]["steps"] == 3
 
 
 def test_oracle_leaves_target_data_unchanged():

@@ -75,6 +75,8 @@ def bench(
     prior_overrides: List[str] = typer.Option(
         [], "--prior-set", help="PriorConfig override of a prior the bench trains: FIELD=VALUE for every env, "
         "ENV:FIELD=VALUE for one (repeatable; xted train --set's fields)."),
+    ser_steps: int = typer.Option(DEFAULTS.ser_steps, "--ser-steps", min=1,
+                                  help="Training steps of the Tgt SER column's transition diffusion model."),
     transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions", min=1,
                                               help="Use only the first N transitions of every dataset."),
     store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
@@ -113,8 +115,8 @@ def bench(
         columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
         project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
-        priors=tuple(priors), prior_steps=prior_steps,
-        prior_preset=prior_preset, prior_overrides=tuple(prior_overrides), transitions=transitions, store=str(store),
+        priors=tuple(priors), prior_steps=prior_steps, prior_preset=prior_preset,
+        prior_overrides=tuple(prior_overrides), ser_steps=ser_steps, transitions=transitions, store=str(store),
         cache=str(cache))
     if (as_json or png is not None or curves or cost or paper or edit_quality) and not report:
         raise InputError("--json, --png, --curves, --cost, --paper and --edit-quality go with --report")

@@ -1,5 +1,5 @@
-"""Computing each kind of cell: an edit, an oracle relabelling, an S4RL copy of the target, and one
-group of learner seeds."""
+"""Computing each kind of cell: an edit, an oracle relabelling, an S4RL copy of the target, SER
+samples, and one group of learner seeds."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from xted.analysis import fit_proxy
 from xted.data import Dataset, load
 from xted.data.augment import gaussian_copy
 from xted.diffusion.editor import edit_dataset
+from xted.diffusion.transitions import TransitionModelConfig, sample_transitions, train_transition_model
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import predict_next_observations, recovered_velocities, replayed_rewards
@@ -60,6 +61,9 @@ def make_data(cell: DataCell, source: Dataset) -> Dataset:
         return edited(cell, source)
     if cell.kind == "s4rl":
         return gaussian_copy(source, cell.inputs["state_std"], cell.inputs["seed"])
+    if cell.kind == "ser":  # as many transitions as the target holds, from a model trained on it
+        return sample_transitions(train_transition_model(source, TransitionModelConfig(**cell.inputs["model"])),
+                                  len(source))
     return oracle(cell.env, cell.gap, source)
 
 

@@ -12,8 +12,8 @@ SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA = (
     "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA", "Tgt+Edited DARA")
 TABLE_COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA)  # Tables 1 and 2
 # Single-domain augmentation (the paper's §5.4): the target plus as many transitions made from it.
-TGT_SELF_EDIT, TGT_GEN, TGT_S4RL = "Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL"
-AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL)
+TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER = "Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER"
+AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER)
 COLUMNS = TABLE_COLUMNS + AUGMENT_COLUMNS
 TARGET_ONLY_COLUMNS = (TGT, *AUGMENT_COLUMNS)  # read no source: one cell per target, shared by its gaps' rows
 DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA)  # DARA's reward correction on the source's share: the paper's Table 2
@@ -32,7 +32,8 @@ class BenchConfig:
     config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
     one, else one the bench trains: ``prior_steps`` of the ``prior_preset`` with ``prior_overrides``,
-    PriorConfig's ``FIELD=VALUE`` for every env or ``ENV:FIELD=VALUE`` for one); ``transitions``: use
+    PriorConfig's ``FIELD=VALUE`` for every env or ``ENV:FIELD=VALUE`` for one); ``ser_steps``: training
+    steps of the Tgt SER column's transition model; ``transitions``: use
     only the first N transitions of every dataset (a quick look at the protocol; None: all)."""
 
     envs: tuple[str, ...] = ("halfcheetah", "walker2d")
@@ -54,6 +55,7 @@ class BenchConfig:
     prior_steps: int = 20_000
     prior_preset: str = "cpu"
     prior_overrides: tuple[str, ...] = ()
+    ser_steps: int = 20_000
     store: str = "benchmarks/results/bench"
     cache: str = "runs/bench-cache"
 
@@ -67,7 +69,7 @@ class BenchConfig:
             raise InputError(f"bench: unknown column {unknown[0]!r}; known: {', '.join(COLUMNS)}")
         if any(seed < 0 for seed in self.seeds):
             raise InputError(f"bench: seeds must be non-negative, got {list(self.seeds)}")
-        for name in ("steps", "eval_every", "eval_episodes", "prior_steps", "dynamics_proxy_steps"):
+        for name in ("steps", "eval_every", "eval_episodes", "prior_steps", "dynamics_proxy_steps", "ser_steps"):
             if getattr(self, name) <= 0:
                 raise InputError(f"bench: {name} must be positive, got {getattr(self, name)}")
         if self.transitions is not None and self.transitions < 2:

@@ -8,7 +8,8 @@ reads exactly the current cells.
 
 Kinds of cell: a *prior* (trained by the bench for a target with no prior shipped or given), an
 *edit* (a source, or the target itself, edited with a prior), an *oracle* (a source relabelled by
-the target simulator) and an *s4rl* copy (the target with Gaussian state noise) make what
+the target simulator), an *s4rl* copy (the target with Gaussian state noise) and *ser* samples (of
+a transition diffusion model trained on the target: :mod:`xted.diffusion.transitions`) make what
 learners read; a *learner* trains one algorithm with one seed on target and/or source data. A
 learner that reads an edit or an oracle, and an edit that reads a prior the bench trains, names
 that cell's key, not its output's fingerprint, so the key is known before the output is made.
@@ -31,6 +32,7 @@ from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.config import preset as prior_preset
 from xted.diffusion.config import presets as prior_presets
 from xted.diffusion.prior import read_prior_json
+from xted.diffusion.transitions import TransitionModelConfig
 from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
 from xted.envs.make import observation_velocity_clip
 from xted.errors import InputError
@@ -47,6 +49,7 @@ from xted.pipelines.bench.config import (
     TGT_ORACLE,
     TGT_S4RL,
     TGT_SELF_EDIT,
+    TGT_SER,
     TGT_SRC,
     TGT_SRC_DARA,
     BenchConfig,
@@ -60,7 +63,7 @@ SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LE
 # and starts from seed 0, as the shipped ones.
 PRIOR_HELDOUT_EPISODES = 2
 PRIOR_SEED = 0
-AUGMENT_SEED = 0  # the noise of the S4RL copy
+AUGMENT_SEED = 0  # the noise of the S4RL copy; the SER model's initialisation, batches and samples
 
 
 def cell_key(inputs: dict) -> str:
@@ -121,7 +124,7 @@ class DynamicsModel:
 @dataclasses.dataclass(frozen=True, eq=False)
 class DataCell:
     """An edit (``target`` is the prior's target level) or an oracle relabelling of one source; with
-    ``gap`` None, data made from the target itself (an edit of it, or its ``s4rl`` copy)."""
+    ``gap`` None, data made from the target itself (an edit of it, its ``s4rl`` copy, ``ser`` samples)."""
 
     kind: str  # "edit" or "oracle"
     env: str
@@ -287,7 +290,7 @@ def plan(config: BenchConfig) -> Grid:
     def data_cell(kind: str, env: str, gap: str | None, target: str | None = None,
                   prior: Path | PriorCell | None = None, augment: EditConfig | None = None) -> DataCell:
         """An edit or oracle of the ``gap`` source; with ``gap`` None, data made from the target
-        itself: an edit with the ``augment`` config (never projected) or an ``s4rl`` copy."""
+        itself: an edit with the ``augment`` config (never projected), an ``s4rl`` copy or ``ser`` samples."""
         source = f"{env}-{gap}" if gap is not None else f"{env}-{target}"
         this_edit = augment or edit
         trained = prior if isinstance(prior, PriorCell) else None
@@ -308,6 +311,9 @@ def plan(config: BenchConfig) -> Grid:
                 inputs["dynamics"] = {"target": fingerprint(dynamics.target), "proxy": dataclasses.asdict(dynamics.proxy)}
         elif kind == "s4rl":
             inputs = {"kind": kind, "source": fingerprint(source), "state_std": S4RL_STATE_STD, "seed": AUGMENT_SEED}
+        elif kind == "ser":
+            model = TransitionModelConfig(steps=config.ser_steps, seed=AUGMENT_SEED)
+            inputs = {"kind": kind, "source": fingerprint(source), "model": dataclasses.asdict(model)}
         else:
             inputs = {"kind": kind, "source": fingerprint(source), "domain": env}
             if math.isfinite(observation_velocity_clip(parse_domain(env))):
@@ -330,8 +336,9 @@ def plan(config: BenchConfig) -> Grid:
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
             augmented = {column: data_cell("edit", env, None, target_level, prior, augment)
                          for column, augment in augments.items() if column in config.columns and prior is not None}
-            if TGT_S4RL in config.columns:
-                augmented[TGT_S4RL] = data_cell("s4rl", env, None, target_level)
+            for column, kind in ((TGT_S4RL, "s4rl"), (TGT_SER, "ser")):
+                if column in config.columns:
+                    augmented[column] = data_cell(kind, env, None, target_level)
             for gap in config.gaps:
                 source = f"{env}-{gap}"
                 trainings: dict[str, tuple[str | DataCell, ...] | None] = {
