@@ -164,19 +164,21 @@ def test_learner_results_record_the_edited_data(tmp_path, fake):
 AUGMENTED = ("Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER")
 
 
-def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_gap_s_row(tmp_path, fake):
+def test_augmentation_columns_are_made_from_the_target_once_per_target(tmp_path, fake, capsys):
     config = tiny_config(tmp_path, columns=("Tgt", "Tgt+Edited", *AUGMENTED), ser_steps=3)
     planned = plan(config)
     rows = {(row.gap, row.column): row for row in planned.rows}
+    assert {gap for gap, column in rows if column in AUGMENTED} == {None}  # one row per target, not per gap
     made = {}
     for column in AUGMENTED:
-        thigh, gravity = rows["thigh", column].cells, rows["gravity", column].cells
-        assert [c.key for c in thigh] == [c.key for c in gravity] and thigh[0].gap is None
-        data = made[column] = thigh[0].data_cell
-        assert (data.source, data.gap, thigh[0].training[0]) == ("halfcheetah-medium-replay", None,
-                                                                 "halfcheetah-medium-replay")
+        (cell, _) = rows[None, column].cells
+        data = made[column] = cell.data_cell
+        assert (data.source, data.gap, cell.gap, cell.training[0]) == (
+            "halfcheetah-medium-replay", None, None, "halfcheetah-medium-replay")
     assert (made["Tgt (Edit)"].edit.kappa, made["Tgt (Edit)"].edit.hold_first) == (1.0, True)
     assert (made["Tgt (Gen)"].edit.kappa, made["Tgt (Gen)"].edit.hold_first) == (1.0, False)
+    assert made["Tgt (Edit)"].edit.clip_denoised == made["Tgt (Gen)"].edit.clip_denoised == 5.0
+    assert made["Tgt (Edit)"].key != plan(dataclasses.replace(config, edit=("clip_denoised=3",))).rows[-4].cells[0].data_cell.key
     assert (made["Tgt S4RL"].kind, made["Tgt SER"].kind) == ("s4rl", "ser") and len({c.key for c in made.values()}) == 4
     assert plan(dataclasses.replace(config, ser_steps=4)).rows[-1].cells[0].data_cell.key != made["Tgt SER"].key
     lite = plan(dataclasses.replace(config, columns=("Tgt", "Tgt+Edited")))
@@ -190,10 +192,31 @@ def test_augmentation_columns_are_made_from_the_target_once_and_shared_by_every_
     noise = copy.observations - target.observations
     assert 2e-4 < noise.std() < 4e-4 and np.abs(noise).max() < 3e-3
     np.testing.assert_array_equal(copy.actions, target.actions)
-    result = store.read_result(config.store, rows["thigh", "Tgt S4RL"].cells[0])
+    result = store.read_result(config.store, rows[None, "Tgt S4RL"].cells[0])
     assert result["final_score"] == (len(target) + len(copy)) / 100  # the fake scores by size: target + its copy
     generated = load(store.data_path(config.cache, made["Tgt SER"]))
     assert len(generated) == len(target) and generated.metadata["generated"]["config"]["steps"] == 3
+
+    options = ["--envs", "halfcheetah", "--gaps", "thigh,gravity", "--columns", ",".join(("Tgt", *AUGMENTED)),
+               "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
+               "--ser-steps", "3", "--store", config.store, "--cache", config.cache, "--report"]
+    assert main(["bench", *options]) == 0
+    table = capsys.readouterr().out
+    assert "| env | target | algo | Tgt | Tgt (Edit) | Tgt (Gen) | Tgt S4RL | Tgt SER |" in table
+    assert "| halfcheetah | medium-replay | iql | 2.5 ± 0.5 [-3.9, 8.9] | 4.5 ± 0.5 [-1.9, 10.9] (+80.0%) |" in table
+    assert "| iql | P(improvement) | Tgt (Edit) > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
+
+
+def test_the_multi_source_columns_read_every_gap_s_source_at_once(tmp_path, fake):
+    config = tiny_config(tmp_path, columns=("Tgt+Edited", "Tgt+All Src", "Tgt+All Edited"))
+    planned = plan(config)
+    rows = {(row.gap, row.column): row for row in planned.rows}
+    every_source, every_edit = rows[None, "Tgt+All Src"].cells[0], rows[None, "Tgt+All Edited"].cells[0]
+    assert every_source.training == ("halfcheetah-medium-replay", "halfcheetah-thigh", "halfcheetah-gravity")
+    edits = [rows[gap, "Tgt+Edited"].cells[0].data_cell.key for gap in ("thigh", "gravity")]
+    assert [ref.key for ref in every_edit.training[1:]] == edits  # the single-source columns' edits, shared
+    run_quietly(config)
+    assert store.read_result(config.store, every_edit)["final_score"] == 600 / 100  # target + both edits
 
 
 def test_oracle_leaves_target_data_unchanged():
@@ -386,13 +409,17 @@ def test_report_sets_the_paper_s_cells_under_each_line_and_its_total_over_the_sa
 
 
 def test_the_paper_s_cells_sum_to_its_printed_totals():
-    from xted.pipelines.bench.paper import _TABLES, PAPER_COLUMNS, PRINTED_TOTALS
+    from xted.pipelines.bench.paper import _TABLES, PAPER_COLUMNS, PRINTED_TOTALS, paper_cell
 
     sums = {column: round(sum(cells[i][0] for cells in _TABLES.values()), 1) for i, column in enumerate(PAPER_COLUMNS)}
     assert len(_TABLES) == 18
     assert {c: sums[c] for c in PAPER_COLUMNS[:4]} == {c: PRINTED_TOTALS[c] for c in PAPER_COLUMNS[:4]}
     # Table 2 prints totals 2.2 and 1.0 above what its cells sum to (734.2, 824.2).
     assert (sums["Tgt+Src DARA"], sums["Tgt+Edited DARA"]) == (732.0, 823.2)
+    multi = [paper_cell(env, target, None, column, "iql")["mean"] for column in ("Tgt+All Src", "Tgt+All Edited")
+             for env in ("halfcheetah", "walker2d") for target in ("medium", "medium-replay", "medium-expert")]
+    assert (round(sum(multi[:6]), 1), round(sum(multi[6:]), 1)) == (235.3, 271.7)
+    assert paper_cell("walker2d", "medium", "thigh", "Tgt+All Src", "iql") is None
 
 
 def test_report_cost_shares_each_group_s_time_among_its_seeds_and_counts_a_shared_edit_once(tmp_path, capsys):

@@ -208,7 +208,7 @@ def table_figure(rows: list[dict]) -> Figure:
     """The paper's Table 1 as grouped bars: a panel per env, target and algorithm, a group per gap,
     a bar per column (mean and std over seeds, each seed a dot where the rows list ``scores``).
     ``rows``: those of ``xted bench --report --json``; a row without a mean is left out."""
-    rows = [row for row in rows if row.get("mean") is not None]
+    rows = [{**row, "gap": row["gap"] or "per target"} for row in rows if row.get("mean") is not None]
     if not rows:
         raise InputError("no row holds a score (every cell is missing)")
     panels = list(dict.fromkeys((row["env"], row["target"], row["algo"]) for row in rows))

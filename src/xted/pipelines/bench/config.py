@@ -14,11 +14,15 @@ TABLE_COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_ED
 # Single-domain augmentation (the paper's §5.4): the target plus as many transitions made from it.
 TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER = "Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER"
 AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER)
-COLUMNS = TABLE_COLUMNS + AUGMENT_COLUMNS
-TARGET_ONLY_COLUMNS = (TGT, *AUGMENT_COLUMNS)  # read no source: one cell per target, shared by its gaps' rows
+# Several sources at once (the paper's appendix "multi-source"): the target plus every gap's source of
+# the grid, unedited or edited by the one prior.
+TGT_ALL_SRC, TGT_ALL_EDITED = "Tgt+All Src", "Tgt+All Edited"
+MULTI_SOURCE_COLUMNS = (TGT_ALL_SRC, TGT_ALL_EDITED)
+COLUMNS = TABLE_COLUMNS + AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS
+PER_TARGET_COLUMNS = AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS  # one cell per target, not per gap: rows of their own
 DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA)  # DARA's reward correction on the source's share: the paper's Table 2
 EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA)
-PRIOR_COLUMNS = (*EDITED_COLUMNS, TGT_SELF_EDIT, TGT_GEN)  # read a prior's output
+PRIOR_COLUMNS = (*EDITED_COLUMNS, TGT_SELF_EDIT, TGT_GEN, TGT_ALL_EDITED)  # read a prior's output
 DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
 
 

@@ -41,7 +41,9 @@ from xted.pipelines.bench.config import (
     DARA_COLUMNS,
     PRIOR_COLUMNS,
     SRC,
-    TARGET_ONLY_COLUMNS,
+    PER_TARGET_COLUMNS,
+    TGT_ALL_EDITED,
+    TGT_ALL_SRC,
     TGT,
     TGT_EDITED,
     TGT_EDITED_DARA,
@@ -64,6 +66,10 @@ SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LE
 PRIOR_HELDOUT_EPISODES = 2
 PRIOR_SEED = 0
 AUGMENT_SEED = 0  # the noise of the S4RL copy; the SER model's initialisation, batches and samples
+# Bound on the predicted x_0 (normalised units) of the augmentation columns' kappa = 1 edits: at the
+# chain's noisiest step sqrt(abar) is ~1e-3, and without it halfcheetah's edits at kappa 1 erred 370-510
+# one step ahead in the simulator, with it 0.26 (BENCHMARKS.md, "Augmenting the target").
+FULL_CHAIN_CLIP = 5.0
 
 
 def cell_key(inputs: dict) -> str:
@@ -179,11 +185,12 @@ class LearnerCell:
 
 @dataclasses.dataclass(frozen=True)
 class Row:
-    """One line of the table: env x target x gap x column x algo, with its cell per seed."""
+    """One line of the table: env x target x gap x column x algo, with its cell per seed; ``gap``
+    None for a column of one cell per target (PER_TARGET_COLUMNS)."""
 
     env: str
     target: str
-    gap: str
+    gap: str | None
     column: str
     algo: str
     cells: tuple[LearnerCell, ...]  # empty where the column cannot be computed (no prior)
@@ -323,51 +330,61 @@ def plan(config: BenchConfig) -> Grid:
                         this_edit if kind == "edit" else None, inputs, cell_key(inputs), trained, dynamics)
 
     # The paper's §5.4: Tgt (Edit) noises the target all the way (kappa 1) and denoises it from its
-    # held first transitions; Tgt (Gen) holds nothing, generating from pure noise.
-    augments = {TGT_SELF_EDIT: dataclasses.replace(edit, kappa=1.0),
-                TGT_GEN: dataclasses.replace(edit, kappa=1.0, hold_first=False)}
+    # held first transitions; Tgt (Gen) holds nothing, generating from pure noise. From kappa 1 the
+    # predicted x_0 is clipped (unless --edit sets a bound): unclipped, the chain's first steps blow up.
+    full_chain = dataclasses.replace(edit, kappa=1.0, clip_denoised=edit.clip_denoised or FULL_CHAIN_CLIP)
+    augments = {TGT_SELF_EDIT: full_chain, TGT_GEN: dataclasses.replace(full_chain, hold_first=False)}
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
+
+    def add_rows(env: str, target_level: str, gap: str | None,
+                 trainings: dict[str, tuple[str | DataCell, ...] | None]) -> None:
+        """A row per algo and column of ``trainings`` (None: not computable here), a cell per seed."""
+        for algo in config.algos:
+            learner, dara = algo_configs(config, algo)
+            for column, training in trainings.items():
+                if column in DARA_COLUMNS and dara is None:
+                    continue
+                algo_config = dara if column in DARA_COLUMNS else learner
+                cells = []
+                for seed in config.seeds if training is not None else ():
+                    inputs = {"kind": "learner", "algo": algorithm_name(algo_config),
+                              "config": dataclasses.asdict(algo_config), "domain": env,
+                              "data": [fingerprint(ref) for ref in training], "steps": config.steps,
+                              "eval_every": config.eval_every, "eval_episodes": config.eval_episodes, "seed": seed}
+                    key = cell_key(inputs)
+                    cells.append(learners.setdefault(key, LearnerCell(
+                        env, None if column == SRC else target_level, None if column == TGT else gap,
+                        column, algo, seed, algo_config, training, inputs, key)))
+                rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))
+
+    table = [column for column in config.columns if column not in PER_TARGET_COLUMNS]
+    per_target = [column for column in config.columns if column in PER_TARGET_COLUMNS]
     for env in config.envs:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
             if set(PRIOR_COLUMNS) & set(config.columns):
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
-            augmented = {column: data_cell("edit", env, None, target_level, prior, augment)
-                         for column, augment in augments.items() if column in config.columns and prior is not None}
-            for column, kind in ((TGT_S4RL, "s4rl"), (TGT_SER, "ser")):
-                if column in config.columns:
-                    augmented[column] = data_cell(kind, env, None, target_level)
+            edits = {gap: data_cell("edit", env, gap, target_level, prior) for gap in config.gaps} if prior else {}
             for gap in config.gaps:
                 source = f"{env}-{gap}"
                 trainings: dict[str, tuple[str | DataCell, ...] | None] = {
                     SRC: (source,), TGT: (target,), TGT_SRC: (target, source), TGT_SRC_DARA: (target, source),
-                    TGT_EDITED: None if prior is None else (target, data_cell("edit", env, gap, target_level, prior)),
+                    TGT_EDITED: (target, edits[gap]) if edits else None,
                     TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
-                    **{column: (target, cell) for column, cell in augmented.items()},
                 }
                 trainings[TGT_EDITED_DARA] = trainings[TGT_EDITED]
-                for algo in config.algos:
-                    learner, dara = algo_configs(config, algo)
-                    for column in config.columns:
-                        if column in DARA_COLUMNS and dara is None:
-                            continue
-                        training = trainings.get(column)
-                        cells = []
-                        for seed in config.seeds if training is not None else ():
-                            algo_config = dara if column in DARA_COLUMNS else learner
-                            inputs = {"kind": "learner", "algo": algorithm_name(algo_config),
-                                      "config": dataclasses.asdict(algo_config), "domain": env,
-                                      "data": [fingerprint(ref) for ref in training], "steps": config.steps,
-                                      "eval_every": config.eval_every, "eval_episodes": config.eval_episodes,
-                                      "seed": seed}
-                            key = cell_key(inputs)
-                            cell = learners.setdefault(key, LearnerCell(
-                                env, None if column == SRC else target_level,
-                                None if column in TARGET_ONLY_COLUMNS else gap,
-                                column, algo, seed, algo_config, training, inputs, key))
-                            cells.append(cell)
-                        rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))
+                add_rows(env, target_level, gap, {column: trainings[column] for column in table})
+            if not per_target:
+                continue
+            made: dict[str, tuple[str | DataCell, ...] | None] = {
+                TGT_ALL_SRC: (target, *(f"{env}-{gap}" for gap in config.gaps)),
+                TGT_ALL_EDITED: (target, *edits.values()) if edits else None,
+                TGT_S4RL: (target, data_cell("s4rl", env, None, target_level)),
+                TGT_SER: (target, data_cell("ser", env, None, target_level)),
+            }
+            for column, augment in augments.items():
+                made[column] = (target, data_cell("edit", env, None, target_level, prior, augment)) if prior else None
+            add_rows(env, target_level, None, {column: made[column] for column in per_target})
     return Grid(config, datasets, rows, learners)
-

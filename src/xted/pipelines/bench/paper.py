@@ -1,11 +1,21 @@
 """The paper's cells, for setting the bench's own beside them: its Table 1 (IQL on 20k target
-and 20k source transitions: Src, Tgt, Tgt+Src, Tgt+Src (Edited)) and Table 2 (DARA and DARA +
-xTED), mean and std over its 5 seeds, as printed. Table 1's cells sum to its printed totals;
+and 20k source transitions: Src, Tgt, Tgt+Src, Tgt+Src (Edited)), Table 2 (DARA and DARA +
+xTED) and its appendix's multi-source table (the three sources at once, unedited and edited),
+mean and std over its 5 seeds, as printed. Table 1's cells sum to its printed totals;
 Table 2's sum to 732.0 and 823.2, where it prints 734.2 and 824.2 (``PRINTED_TOTALS``)."""
 
 from __future__ import annotations
 
-from xted.pipelines.bench.config import SRC, TGT, TGT_EDITED, TGT_EDITED_DARA, TGT_SRC, TGT_SRC_DARA
+from xted.pipelines.bench.config import (
+    SRC,
+    TGT,
+    TGT_ALL_EDITED,
+    TGT_ALL_SRC,
+    TGT_EDITED,
+    TGT_EDITED_DARA,
+    TGT_SRC,
+    TGT_SRC_DARA,
+)
 
 PAPER_ALGO = "iql"  # both tables are IQL's (Table 2: DARA's reward correction on an IQL learner)
 PAPER_COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_SRC_DARA, TGT_EDITED_DARA)
@@ -49,11 +59,28 @@ _TABLES: dict[tuple[str, str, str], tuple[tuple[float, float], ...]] = {
 }
 
 
-def paper_cell(env: str, target: str, gap: str, column: str, algo: str) -> dict | None:
+# The appendix's multi-source table, (env, target): Tgt+Src and Tgt+Src(Edited) with all three gaps'
+# sources (printed totals 235.3 and 271.7; its Tgt column is Table 1's).
+_MULTI_SOURCE: dict[tuple[str, str], tuple[tuple[float, float], tuple[float, float]]] = {
+    ("halfcheetah", "medium"): ((37.6, 3.1), (39.7, 1.9)),
+    ("halfcheetah", "medium-replay"): ((26.6, 3.5), (28.2, 3.2)),
+    ("halfcheetah", "medium-expert"): ((35.3, 5.0), (41.3, 1.8)),
+    ("walker2d", "medium"): ((41.8, 19.1), (58.5, 9.3)),
+    ("walker2d", "medium-replay"): ((19.8, 6.2), (22.7, 7.6)),
+    ("walker2d", "medium-expert"): ((74.2, 15.2), (81.3, 18.0)),
+}
+
+
+def paper_cell(env: str, target: str, gap: str | None, column: str, algo: str) -> dict | None:
     """The paper's ``{"mean", "std"}`` for this row, or None where it printed none (another algo,
     column or task)."""
+    if algo != PAPER_ALGO:
+        return None
+    if column in (TGT_ALL_SRC, TGT_ALL_EDITED):
+        cells = _MULTI_SOURCE.get((env, target)) if gap is None else None
+        return None if cells is None else dict(zip(("mean", "std"), cells[column == TGT_ALL_EDITED]))
     cells = _TABLES.get((env, target, gap))
-    if cells is None or algo != PAPER_ALGO or column not in PAPER_COLUMNS:
+    if cells is None or column not in PAPER_COLUMNS:
         return None
     mean, std = cells[PAPER_COLUMNS.index(column)]
     return {"mean": mean, "std": std}

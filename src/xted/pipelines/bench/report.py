@@ -12,7 +12,20 @@ import numpy as np
 
 from xted.analysis.stats import improvement_interval, iqm_interval, t_interval
 from xted.pipelines.bench import store
-from xted.pipelines.bench.config import TGT, TGT_EDITED, TGT_EDITED_DARA, TGT_SRC, TGT_SRC_DARA
+from xted.pipelines.bench.config import (
+    PER_TARGET_COLUMNS,
+    TGT,
+    TGT_ALL_EDITED,
+    TGT_ALL_SRC,
+    TGT_EDITED,
+    TGT_EDITED_DARA,
+    TGT_GEN,
+    TGT_S4RL,
+    TGT_SELF_EDIT,
+    TGT_SER,
+    TGT_SRC,
+    TGT_SRC_DARA,
+)
 from xted.pipelines.bench.grid import Grid
 from xted.pipelines.bench.paper import paper_cell
 
@@ -61,8 +74,11 @@ def score_summary(scores: Sequence[float]) -> dict:
             "n_seeds": len(scores)}
 
 
-# Aggregates over tasks: Tgt+Edited against each baseline, as the paper's claims read (Table 1; Table 2 for DARA).
-IMPROVEMENTS = ((TGT_EDITED, TGT), (TGT_EDITED, TGT_SRC), (TGT_EDITED_DARA, TGT_SRC_DARA))
+# Aggregates over tasks: each edited column against its baselines, as the paper's claims read (Table 1;
+# Table 2 for DARA; §5.4 for augmentation, against Tgt and the two baselines; the multi-source appendix).
+IMPROVEMENTS = ((TGT_EDITED, TGT), (TGT_EDITED, TGT_SRC), (TGT_EDITED_DARA, TGT_SRC_DARA),
+                (TGT_SELF_EDIT, TGT), (TGT_GEN, TGT), (TGT_SELF_EDIT, TGT_S4RL), (TGT_SELF_EDIT, TGT_SER),
+                (TGT_ALL_EDITED, TGT_ALL_SRC), (TGT_ALL_EDITED, TGT))
 
 
 def aggregate(rows: list[dict]) -> list[dict]:
@@ -76,12 +92,14 @@ def aggregate(rows: list[dict]) -> list[dict]:
                 scores.setdefault(row["column"], {})[(row["env"], row["target"], row["gap"])] = row["scores"]
         for column, tasks in scores.items():
             out.append({"algo": algo, "measure": "IQM", "column": column, **iqm_interval(list(tasks.values()))})
+        # Tgt's cell is one per target: the same scores on every gap's row and against a per-target column.
+        per_target_tgt = {(env, target, None): found for (env, target, _), found in scores.get(TGT, {}).items()}
         for better, baseline in IMPROVEMENTS:
-            shared = [task for task in scores.get(better, {}) if task in scores.get(baseline, {})]
+            against = per_target_tgt if baseline == TGT and better in PER_TARGET_COLUMNS else scores.get(baseline, {})
+            shared = [task for task in scores.get(better, {}) if task in against]
             if shared:
                 out.append({"algo": algo, "measure": "P(improvement)", "column": f"{better} > {baseline}",
-                            **improvement_interval([scores[better][t] for t in shared],
-                                                   [scores[baseline][t] for t in shared])})
+                            **improvement_interval([scores[better][t] for t in shared], [against[t] for t in shared])})
     return out
 
 
@@ -105,26 +123,44 @@ def gain(value: float | None, baseline: float | None) -> str:
 def markdown(rows: list[dict], paper: bool = False) -> str:
     """Columns side by side per env, target, gap and algo (mean ± std over seeds [95% t-interval]);
     a Total line per algo (sums of means). ``paper``: under each line the paper's cells of it, and
-    under each Total the paper's over the same rows."""
+    under each Total the paper's over the same rows. Columns of one cell per target (augmentation,
+    several sources) follow in a table of their own, one line per target, beside its Tgt."""
+    table = [row for row in rows if row["gap"] is not None]
+    per_target = [row for row in rows if row["gap"] is None]
+    sections = [_table(table, ("env", "target", "gap"), paper)] if table else []
+    if per_target:
+        tgt = {(row["env"], row["target"], row["algo"]): row for row in table if row["column"] == TGT}
+        with_tgt = []
+        for key in dict.fromkeys((row["env"], row["target"], row["algo"]) for row in per_target):
+            if key in tgt:
+                with_tgt.append(tgt[key])
+            with_tgt += [row for row in per_target if (row["env"], row["target"], row["algo"]) == key]
+        sections.append(_table(with_tgt, ("env", "target"), paper))
+    return "\n\n".join(sections)
+
+
+def _table(rows: list[dict], labels: tuple[str, ...], paper: bool) -> str:
     columns = list(dict.fromkeys(row["column"] for row in rows))
     lines: dict[tuple, dict[str, dict]] = {}
     for row in rows:
-        lines.setdefault((row["env"], row["target"], row["gap"], row["algo"]), {})[row["column"]] = row
-    header = ["env", "target", "gap", "algo", *columns]
+        lines.setdefault((*(row[label] for label in labels), row["algo"]), {})[row["column"]] = row
+    header = [*labels, "algo", *columns]
+    blank = "|" + " |" * len(labels) + " "  # the label cells left empty
+    total = "| Total |" + " |" * (len(labels) - 1) + " "
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for (env, target, gap, algo), found in lines.items():
+    for (*names, algo), found in lines.items():
         cells = [_shown(found.get(column), found.get(TGT), column) for column in columns]
-        out.append("| " + " | ".join([env, target, gap, algo, *cells]) + " |")
+        out.append("| " + " | ".join([*names, algo, *cells]) + " |")
         if paper and any(row["paper"] for row in found.values()):
             cells = [_shown(found[c]["paper"] if c in found else None, found.get(TGT, {}).get("paper"), c)
                      for c in columns]
-            out.append("| | | | paper | " + " | ".join(cells) + " |")
+            out.append(blank + "paper | " + " | ".join(cells) + " |")
     for algo in dict.fromkeys(row["algo"] for row in rows):
         mine = [row for row in rows if row["algo"] == algo]
-        out.append("| Total | | | " + algo + " | " + " | ".join(_totals(mine, columns)) + " |")
+        out.append(total + algo + " | " + " | ".join(_totals(mine, columns)) + " |")
         if paper and any(row["paper"] for row in mine):
-            out.append("| Total | | | paper | " + " | ".join(_totals([{**row, **(row["paper"] or {"mean": None})}
-                                                                      for row in mine], columns)) + " |")
+            papers = [{**row, **(row["paper"] or {"mean": None})} for row in mine]
+            out.append(total + "paper | " + " | ".join(_totals(papers, columns)) + " |")
     return "\n".join(out)
 
 
