@@ -146,7 +146,7 @@ def _sample(config: TransitionModelConfig, schedule: Schedule, params, key: jax.
             bound: jnp.ndarray) -> jnp.ndarray:
     """``n`` standardised vectors: the ancestral chain (Ho et al. 2020, Eq. 6-7) from pure noise, each
     step's predicted ``x_0`` clipped to ``+-bound`` per dimension (at the chain's noisiest steps
-    ``sqrt(abar)`` is ~1e-3, and an unclipped ``x_0`` amplifies the noise prediction's error a thousandfold)."""
+    ``sqrt(abar)`` is 5e-4 (K = 100), and an unclipped ``x_0`` multiplies the noise prediction's error by 2,000)."""
     start, key = jax.random.split(key)
     x = jax.random.normal(start, (n, bound.shape[0]))
 

@@ -67,7 +67,7 @@ PRIOR_HELDOUT_EPISODES = 2
 PRIOR_SEED = 0
 AUGMENT_SEED = 0  # the noise of the S4RL copy; the SER model's initialisation, batches and samples
 # Bound on the predicted x_0 (normalised units) of the augmentation columns' kappa = 1 edits: at the
-# chain's noisiest step sqrt(abar) is ~1e-3, and without it halfcheetah's edits at kappa 1 erred 370-510
+# chain's noisiest step sqrt(abar) is 2.5e-4, and without it halfcheetah's edits at kappa 1 erred 370-510
 # one step ahead in the simulator, with it 0.26 (BENCHMARKS.md, "Augmenting the target").
 FULL_CHAIN_CLIP = 5.0
 
