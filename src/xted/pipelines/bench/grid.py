@@ -39,12 +39,12 @@ from xted.errors import InputError
 from xted.pipelines.bench.config import (
     DARA_BACKBONE,
     DARA_COLUMNS,
+    PER_TARGET_COLUMNS,
     PRIOR_COLUMNS,
     SRC,
-    PER_TARGET_COLUMNS,
+    TGT,
     TGT_ALL_EDITED,
     TGT_ALL_SRC,
-    TGT,
     TGT_EDITED,
     TGT_EDITED_DARA,
     TGT_GEN,
@@ -132,7 +132,7 @@ class DataCell:
     """An edit (``target`` is the prior's target level) or an oracle relabelling of one source; with
     ``gap`` None, data made from the target itself (an edit of it, its ``s4rl`` copy, ``ser`` samples)."""
 
-    kind: str  # "edit" or "oracle"
+    kind: str  # "edit", "oracle", "s4rl" or "ser"
     env: str
     gap: str
     source: str  # dataset name
