@@ -33,6 +33,7 @@ from conftest import build_dataset
 import xted
 from xted.cli.main import main
 from xted.data import formats, shipped
+from xted.diffusion.guard import TARGET_MODEL_FILE
 
 DOC = Path(__file__).parent.parent / "docs" / "bad_inputs.md"
 HC_PRIOR = "halfcheetah-medium-replay-cpu"
@@ -108,7 +109,8 @@ def _online_run(ws: Path) -> Path:
 
 
 def _fake_prior(ws: Path, corrupt: str | None) -> str:
-    """A copy of the shipped prior, with one file spoiled: ``record`` (prior.json), ``params`` or None."""
+    """A copy of the shipped prior, with one file spoiled: ``record`` (prior.json), ``params``,
+    ``target_model`` (the guard's), ``no_target_model`` (it removed: a prior from before the guard) or None."""
     import shutil
 
     folder = ws / "prior"
@@ -119,6 +121,10 @@ def _fake_prior(ws: Path, corrupt: str | None) -> str:
         params = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "prior.json")
         biggest = max(params, key=lambda p: p.stat().st_size)
         biggest.write_bytes(biggest.read_bytes()[:100])
+    elif corrupt == "target_model":
+        (folder / TARGET_MODEL_FILE).write_bytes((folder / TARGET_MODEL_FILE).read_bytes()[:100])
+    elif corrupt == "no_target_model":
+        (folder / TARGET_MODEL_FILE).unlink()
     return str(folder)
 
 
@@ -228,6 +234,18 @@ CASES = [
     Case("corrupt-prior-params", "a prior whose parameters file is truncated",
          lambda ws: ["edit", "--prior", _fake_prior(ws, "params"), "--source", _halfcheetah_like(ws, "s.npz", 100),
                      "--out", str(ws / "o.npz")], "prior"),
+    Case("edit-corrupt-target-model", "a prior whose guard model file is truncated",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "target_model"), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz")], "unreadable target model"),
+    Case("edit-guard-without-target-model", "the guarded edit with a prior that holds no target model",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "no_target_model"), "--source",
+                     _halfcheetah_like(ws, "s.npz", 100), "--out", str(ws / "o.npz")], "--target"),
+    Case("edit-outside-support-value", "--outside-support sideways",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz"), "--outside-support", "sideways"], "outside_support must be one of"),
+    Case("edit-negative-guard-margin", "--guard-margin -1",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz"), "--guard-margin", "-1"], "guard_margin must be >= 0"),
     Case("train-one-step-episodes", "train a prior on one-step episodes",
          lambda ws: ["train", "--target", _tiny(ws, lengths=(1,) * 40), "--out", str(ws / "p"), "--steps", "1"],
          "horizon"),

@@ -44,7 +44,7 @@ def source():
 
 @pytest.fixture(scope="module")
 def edited(prior, source):
-    return edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0))
+    return edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=0))
 
 
 def _windows(b: int = BATCH, seed: int = 0):
@@ -55,7 +55,7 @@ def _windows(b: int = BATCH, seed: int = 0):
 @pytest.mark.parametrize("hold_last", [False, True])
 def test_edit_windows_holds_transitions(prior, hold_last):
     s, a, r = _windows()
-    out = edit_windows(prior, s, a, r, EditConfig(hold_last=hold_last), jax.random.key(0))
+    out = edit_windows(prior, s, a, r, EditConfig(guard=False, hold_last=hold_last), jax.random.key(0))
     for x, y in zip((s, a, r), out):
         y = np.asarray(y)
         assert y.shape == x.shape and np.all(np.isfinite(y))
@@ -69,12 +69,12 @@ def test_edit_windows_holds_transitions(prior, hold_last):
 def test_hold_actions_keeps_every_action_and_edits_states_and_rewards(architecture):
     prior = random_prior(dataclasses.replace(TINY, architecture=architecture))
     s, a, r = _windows()
-    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(hold_actions=True),
+    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(guard=False, hold_actions=True),
                                                              jax.random.key(0)))
     np.testing.assert_array_equal(out_a, a)
     assert not np.allclose(out_s[:, 1:], s[:, 1:])
     assert not np.allclose(out_r[:, 1:-1], r[:, 1:-1])
-    free_s = np.asarray(edit_windows(prior, s, a, r, EditConfig(), jax.random.key(0))[0])
+    free_s = np.asarray(edit_windows(prior, s, a, r, EditConfig(guard=False), jax.random.key(0))[0])
     if architecture == "inverse_dynamics":  # its chain reads states alone
         np.testing.assert_array_equal(out_s, free_s)
     else:  # the held actions condition the denoised states
@@ -83,26 +83,26 @@ def test_hold_actions_keeps_every_action_and_edits_states_and_rewards(architectu
 
 def test_reverse_chain_starts_at_k(prior):
     # K = 10, kappa = 0.5: noise to t = k - 1 = 4, then exactly k = 5 model calls t = 4 .. 0.
-    assert _plan(prior, EditConfig()).timesteps == (4, 3, 2, 1, 0)
-    assert _plan(prior, EditConfig(kappa=1.0)).timesteps == tuple(range(9, -1, -1))
-    assert _plan(prior, EditConfig(kappa=0.5, sampler="ddim", sampler_steps=3)).timesteps == (4, 2, 0)
+    assert _plan(prior, EditConfig(guard=False)).timesteps == (4, 3, 2, 1, 0)
+    assert _plan(prior, EditConfig(guard=False, kappa=1.0)).timesteps == tuple(range(9, -1, -1))
+    assert _plan(prior, EditConfig(guard=False, kappa=0.5, sampler="ddim", sampler_steps=3)).timesteps == (4, 2, 0)
 
 
 def test_a_prior_trained_on_low_noise_levels_refuses_larger_kappas():
     low = random_prior(dataclasses.replace(TINY, train_kappa_max=0.5))
-    assert _plan(low, EditConfig(kappa=0.5)).timesteps == (4, 3, 2, 1, 0)
+    assert _plan(low, EditConfig(guard=False, kappa=0.5)).timesteps == (4, 3, 2, 1, 0)
     with pytest.raises(InputError, match="train_kappa_max=0.5"):
-        _plan(low, EditConfig(kappa=0.6))
+        _plan(low, EditConfig(guard=False, kappa=0.6))
 
 
 def test_kappa_zero_windows_identity(prior):
     s, a, r = _windows()
-    out = edit_windows(prior, s, a, r, EditConfig(kappa=0.0), jax.random.key(0))
+    out = edit_windows(prior, s, a, r, EditConfig(guard=False, kappa=0.0), jax.random.key(0))
     assert all(y is x for x, y in zip((s, a, r), out))
 
 
 def test_kappa_zero_dataset_unchanged(prior, source):
-    result, report = edit_dataset(prior, source, EditConfig(kappa=0.0))
+    result, report = edit_dataset(prior, source, EditConfig(guard=False, kappa=0.0))
     for name in ("observations", "actions", "rewards", "terminals", "timeouts", "next_observations"):
         np.testing.assert_array_equal(getattr(result, name), getattr(source, name), err_msg=name)
     assert sorted(result.extras) == sorted(source.extras)
@@ -144,8 +144,8 @@ def test_edited_episodes_are_stitched(source, edited):
 def test_without_the_held_first_transition_episodes_are_generated_and_still_stitched(prior, source):
     """hold_first=False at kappa 1 (the paper's Tgt (Gen)): each episode's first transition is made
     too, and every later window still starts where the one before ended."""
-    result, _ = edit_dataset(prior, source, EditConfig(kappa=1.0, hold_first=False, batch_size=BATCH, seed=0))
-    held, _ = edit_dataset(prior, source, EditConfig(kappa=1.0, batch_size=BATCH, seed=0))
+    result, _ = edit_dataset(prior, source, EditConfig(guard=False, kappa=1.0, hold_first=False, batch_size=BATCH, seed=0))
+    held, _ = edit_dataset(prior, source, EditConfig(guard=False, kappa=1.0, batch_size=BATCH, seed=0))
     for start, end in result.episode_bounds():
         if end - start + 1 < H:
             continue
@@ -154,7 +154,7 @@ def test_without_the_held_first_transition_episodes_are_generated_and_still_stit
             np.testing.assert_array_equal(getattr(held, name)[start], getattr(source, name)[start])
         np.testing.assert_array_equal(result.next_observations[start:end - 1], result.observations[start + 1:end])
     windows = _windows()
-    free = edit_windows(prior, *windows, EditConfig(hold_first=False), jax.random.key(0))
+    free = edit_windows(prior, *windows, EditConfig(guard=False, hold_first=False), jax.random.key(0))
     assert not np.isclose(np.asarray(free[0])[:, 0], windows[0][:, 0]).all()
 
 
@@ -166,7 +166,7 @@ def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keep
     def dynamics(observations, actions):
         return 0.9 * observations + np.concatenate([observations, actions], axis=1) @ weights
 
-    projected, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=1.0),
+    projected, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=0, dynamics_weight=1.0),
                                 dynamics=dynamics)
     edited_rows = np.ones(len(source.observations), bool)
     edited_rows[[start for start, _ in projected.episode_bounds()]] = False  # each episode's first state is held
@@ -178,10 +178,10 @@ def test_a_dynamics_projection_makes_every_edited_transition_the_models_and_keep
         np.testing.assert_array_equal(projected.next_observations[start:end - 1], projected.observations[start + 1:end])
     assert not np.allclose(projected.actions[edited_rows], source.actions[edited_rows])
     assert projected.metadata["edit"]["dynamics_projection"] and not edited[0].metadata["edit"]["dynamics_projection"]
-    unweighted, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=0.0),
+    unweighted, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=0, dynamics_weight=0.0),
                                  dynamics=dynamics)
     np.testing.assert_allclose(unweighted.next_observations, edited[0].next_observations, atol=1e-5)
-    halfway, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0, dynamics_weight=0.5),
+    halfway, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=0, dynamics_weight=0.5),
                               dynamics=dynamics)
     for start, end in halfway.episode_bounds():
         np.testing.assert_array_equal(halfway.next_observations[start:end - 1], halfway.observations[start + 1:end])
@@ -196,9 +196,9 @@ def test_edits_of_a_walker2d_prior_stay_inside_its_observation_space():
     wide = dataclasses.replace(wide, observations=30 * wide.observations, next_observations=30 * wide.next_observations)
     prior = dataclasses.replace(random_prior(config), normalizer=Normalizer.fit(wide))
     source = build_dataset(lengths=LENGTHS, obs_dim=17, act_dim=6, seed=1)
-    unbounded, report = edit_dataset(prior, source, EditConfig(batch_size=BATCH))
+    unbounded, report = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH))
     assert report["clipped_to_observation_space"] == 0 and np.abs(unbounded.observations[:, 8:]).max() > 10
-    bounded, report = edit_dataset(dataclasses.replace(prior, env="walker2d"), source, EditConfig(batch_size=BATCH))
+    bounded, report = edit_dataset(dataclasses.replace(prior, env="walker2d"), source, EditConfig(guard=False, batch_size=BATCH))
     assert report["clipped_to_observation_space"] > 0
     for states in (bounded.observations, bounded.next_observations):
         assert np.abs(states[:, 8:]).max() <= 10 and np.abs(states[:, :8]).max() > 10  # positions are not bounded
@@ -208,14 +208,14 @@ def test_edits_of_a_walker2d_prior_stay_inside_its_observation_space():
 
 
 def test_edit_does_not_depend_on_how_windows_are_batched(prior, source, edited):
-    one_at_a_time, _ = edit_dataset(prior, source, EditConfig(batch_size=1, seed=0))
+    one_at_a_time, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=1, seed=0))
     for name in ("observations", "actions", "rewards", "next_observations"):
         np.testing.assert_allclose(getattr(one_at_a_time, name), getattr(edited[0], name), atol=1e-5, err_msg=name)
 
 
 def test_edit_dataset_deterministic(prior, source, edited):
-    again, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=0))
-    other, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, seed=1))
+    again, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=0))
+    other, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH, seed=1))
     for name in ("observations", "actions", "rewards", "next_observations"):
         np.testing.assert_array_equal(getattr(again, name), getattr(edited[0], name), err_msg=name)
     assert not np.allclose(other.observations, again.observations)
@@ -223,11 +223,11 @@ def test_edit_dataset_deterministic(prior, source, edited):
 
 def test_guidance_zero_is_the_unconditional_prediction(prior):
     """eps(w) = eps_u + w (eps_c - eps_u) is affine in w, so eps(0) = 2 eps(1/2) - eps(1)."""
-    assert prior.config.return_condition and EditConfig().guidance == 0.0
+    assert prior.config.return_condition and EditConfig(guard=False).guidance == 0.0
     s, a, r = _windows()
     x = {"state": s, "action": a, "reward": r}
     t, returns = np.full(BATCH, 3), np.full(BATCH, 0.9, np.float32)
-    eps = {w: _predict_noise(prior.params, _plan(prior, EditConfig(guidance=w)), x, t, returns) for w in (0.0, 0.5, 1.0)}
+    eps = {w: _predict_noise(prior.params, _plan(prior, EditConfig(guard=False, guidance=w)), x, t, returns) for w in (0.0, 0.5, 1.0)}
     for stream in x:
         np.testing.assert_allclose(eps[0.0][stream], 2 * eps[0.5][stream] - eps[1.0][stream], rtol=1e-4, atol=1e-5)
         assert not np.allclose(eps[0.0][stream], eps[1.0][stream])
@@ -235,7 +235,7 @@ def test_guidance_zero_is_the_unconditional_prediction(prior):
 
 def test_ddim_with_guidance(prior):
     s, a, r = _windows()
-    config = EditConfig(sampler="ddim", sampler_steps=2, guidance=2.0, iterations=2)
+    config = EditConfig(guard=False, sampler="ddim", sampler_steps=2, guidance=2.0, iterations=2)
     out = edit_windows(prior, s, a, r, config, jax.random.key(0))
     assert all(np.all(np.isfinite(np.asarray(y))) for y in out)
     np.testing.assert_array_equal(np.asarray(out[0])[:, 0], s[:, 0])
@@ -244,12 +244,12 @@ def test_ddim_with_guidance(prior):
     with pytest.raises(InputError, match="exceeds"):
         edit_windows(prior, s, a, r, dataclasses.replace(config, sampler_steps=6), jax.random.key(0))
     with pytest.raises(InputError, match="ddim sampler only"):
-        EditConfig(sampler_steps=3)
+        EditConfig(guard=False, sampler_steps=3)
 
 
 def test_reward_free_prior_carries_rewards(source):
     prior = random_prior(dataclasses.replace(TINY, use_reward=False, return_condition=False))
-    result, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH))
+    result, _ = edit_dataset(prior, source, EditConfig(guard=False, batch_size=BATCH))
     np.testing.assert_array_equal(result.rewards, source.rewards)
     assert not np.allclose(result.observations, source.observations)
 
@@ -260,7 +260,7 @@ def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states(hol
     the inverse models applied to the edited states; held transitions stay bit-identical."""
     prior = random_prior(dataclasses.replace(TINY, architecture="inverse_dynamics"))
     s, a, r = _windows()
-    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(hold_last=hold_last),
+    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(guard=False, hold_last=hold_last),
                                                              jax.random.key(0)))
     for x, y in zip((s, a, r), (out_s, out_a, out_r)):
         np.testing.assert_array_equal(y[:, 0], x[:, 0])
@@ -277,5 +277,5 @@ def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states(hol
 def test_dimension_mismatch(prior):
     wrong = build_dataset(lengths=LENGTHS, obs_dim=4, act_dim=2)
     with pytest.raises(InputError, match="4-d observations and 2-d actions; the prior.s training data has 3 and 2"):
-        edit_dataset(prior, wrong, EditConfig())
+        edit_dataset(prior, wrong, EditConfig(guard=False))
 

@@ -18,92 +18,15 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from functools import partial
-from typing import Any
 
-import flax.linen as nn
-import jax
-import jax.numpy as jnp
 import numpy as np
-import optax
-from tqdm.auto import tqdm
 
 from xted.analysis.config import ProxyConfig
 from xted.data import Dataset
 from xted.data.dataset import REWARD_FREE
 from xted.envs.dynamics import DynamicsError
 from xted.errors import InputError
-from xted.nn import MLP
-
-
-@dataclass(frozen=True)
-class FittedMLP:
-    """An MLP fitted to standardised inputs and outputs; called on raw inputs, gives raw outputs."""
-
-    config: ProxyConfig
-    params: Any
-    input_mean: np.ndarray
-    input_std: np.ndarray
-    output_mean: np.ndarray
-    output_std: np.ndarray
-
-    @property
-    def input_dim(self) -> int:
-        return len(self.input_mean)
-
-    def __call__(self, inputs: np.ndarray) -> np.ndarray:
-        x = (np.asarray(inputs, np.float32) - self.input_mean) / self.input_std
-        y = np.asarray(_apply(self.params, self.config.hidden, jnp.asarray(x), len(self.output_mean)), np.float64)
-        return y * self.output_std + self.output_mean
-
-
-@partial(jax.jit, static_argnums=(1, 3))
-def _apply(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, out: int) -> jnp.ndarray:
-    return MLP(hidden, out, activation=nn.silu).apply(params, x)
-
-
-def proxy_loss(params: Any, hidden: tuple[int, ...], x: jnp.ndarray, y: jnp.ndarray) -> jnp.ndarray:
-    """Mean squared error of the standardised outputs."""
-    return jnp.mean((_apply(params, hidden, x, y.shape[-1]) - y) ** 2)
-
-
-def fit_mlp(inputs: np.ndarray, outputs: np.ndarray, config: ProxyConfig, progress: bool = True,
-            desc: str = "proxy") -> FittedMLP:
-    """Fit ``outputs [N, k]`` from ``inputs [N, d]``; the same seed gives the same model."""
-    if len(inputs) < 2:
-        raise InputError(f"a proxy needs at least 2 target transitions, got {len(inputs)}")
-    inputs, outputs = np.asarray(inputs, np.float32), np.asarray(outputs, np.float32)
-    input_mean, input_std = inputs.mean(0), inputs.std(0) + 1e-6
-    output_mean, output_std = outputs.mean(0), outputs.std(0) + 1e-6
-    x = jnp.asarray((inputs - input_mean) / input_std)
-    y = jnp.asarray((outputs - output_mean) / output_std)
-
-    init_key, data_key = jax.random.split(jax.random.PRNGKey(config.seed))
-    params = MLP(config.hidden, y.shape[1], activation=nn.silu).init(init_key, x[:1])
-    optimizer = optax.adam(optax.cosine_decay_schedule(config.learning_rate, config.steps))
-    opt_state = optimizer.init(params)
-
-    def update(carry, key):
-        params, opt_state = carry
-        pick = jax.random.randint(key, (config.batch_size,), 0, x.shape[0])
-        loss, grads = jax.value_and_grad(proxy_loss)(params, config.hidden, x[pick], y[pick])
-        updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state), loss
-
-    @jax.jit
-    def chunk(carry, keys):
-        return jax.lax.scan(update, carry, keys)
-
-    keys = jax.random.split(data_key, config.steps)
-    carry = (params, opt_state)
-    bar = tqdm(total=config.steps, disable=not progress, unit="step", desc=desc)
-    for start in range(0, config.steps, 1000):
-        carry, losses = chunk(carry, keys[start : start + 1000])
-        bar.update(len(losses))
-        bar.set_postfix(loss=f"{float(losses[-1]):.4f}")
-    bar.close()
-    return FittedMLP(config=config, params=jax.device_get(carry[0]), input_mean=input_mean, input_std=input_std,
-                     output_mean=output_mean, output_std=output_std)
+from xted.nn import FittedMLP, fit_mlp
 
 
 def _check_dims(kind: str, expected: tuple[int, ...], given: tuple[int, ...]) -> None:

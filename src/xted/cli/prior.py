@@ -67,35 +67,45 @@ def edit(
         "docs/editing.md)."),
     dynamics_proxy_steps: int = typer.Option(ProxyConfig.steps, "--dynamics-proxy-steps", min=1,
                                              help="Training steps of that dynamics model."),
+    guard_target: Optional[str] = typer.Option(
+        None, "--target",
+        help="Target dataset to fit the guard's dynamics model to, for a prior that holds none (one trained "
+        "before xted fitted it); the guard is on unless --guard false."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),
     edit_fields: List[str] = (),
 ) -> None:
-    """Edit source trajectories toward the prior's (target) dynamics."""
+    """Edit source trajectories toward the prior's (target) dynamics, guarded (docs/editing.md): an edited
+    window is kept only where it is valid in the target and more consistent with it than the source's."""
     from xted.analysis import fit_proxy, fit_reward_proxy, relabel_rewards
     from xted.api import load_prior
     from xted.data import check_dimensions, formats, load
     from xted.diffusion.editor import edit_dataset
+    from xted.diffusion.guard import fit_target_model
     from xted.envs import check_same_env, dataset_env
 
     config = apply_overrides(EditConfig(), edit_fields)
     formats.check_writable(formats.target(out), overwrite=force)
     prior_model = load_prior(prior)
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
-                                              "--project-dynamics": project_dynamics, "--prior": prior_model.path})
+                                              "--project-dynamics": project_dynamics, "--target": guard_target,
+                                              "--prior": prior_model.path})
     source_data = load(source)
     reward_data = None if relabel_rewards_from is None else load(relabel_rewards_from)
     dynamics_data = None if project_dynamics is None else load(project_dynamics)
+    guard_data = None if guard_target is None else load(guard_target)
     check_same_env(prior_model.env, dataset_env(source_data.metadata), f"--source {source}", allow_env_mismatch)
     for role, name, data in (("--relabel-rewards", relabel_rewards_from, reward_data),
-                             ("--project-dynamics", project_dynamics, dynamics_data)):
+                             ("--project-dynamics", project_dynamics, dynamics_data), ("--target", guard_target, guard_data)):
         if data is not None:
             check_dimensions(data, (source_data.observation_dim, source_data.action_dim), f"{role} {name}", "the source")
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
     dynamics = None if dynamics_data is None else fit_proxy(
         dynamics_data, ProxyConfig(steps=dynamics_proxy_steps, seed=config.seed)).predict
-    edited, report = edit_dataset(prior_model, source_data, config, progress=True, dynamics=dynamics)
+    target_model = None if guard_data is None or not config.guard else fit_target_model(guard_data, seed=config.seed)
+    edited, report = edit_dataset(prior_model, source_data, config, progress=True, dynamics=dynamics,
+                                  target_model=target_model)
     if reward_data is not None:
         edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps,
                                                                            seed=config.seed)))
@@ -103,6 +113,8 @@ def edit(
     if dynamics_data is not None:
         report["dynamics_projected_by_a_model_of"] = project_dynamics
     formats.save(edited, out, overwrite=force)
+    if "guard" in report:
+        typer.echo(report["guard"]["verdict"])
     typer.echo(json.dumps({"out": out, **report}))
 
 

@@ -179,6 +179,10 @@ class PriorConfig(DenoiserConfig):
         return cls(**known_fields(cls, data))
 
 
+OUTSIDE_SUPPORT = ("keep", "drop", "edit")
+GUARD_FIELDS = ("guard", "guard_margin", "support_z", "outside_support")
+
+
 @dataclass(frozen=True)
 class EditConfig:
     """How to edit. ``guidance`` w: ``eps = eps_u + w (eps_c - eps_u)`` toward normalised return
@@ -212,6 +216,15 @@ class EditConfig:
                                           "rollout).")
     batch_size: int = setting(1024, "Episodes edited side by side (windows per denoiser call).")
     seed: int = setting(0, "Seed of the forward noise (and reverse noise with temperature > 0).")
+    guard: bool = setting(True, "Keep an edited window only where it is valid in the target and lowers the target "
+                                "dynamics model's error by more than guard_margin x its resolution; else the source's "
+                                "window (false: the paper's plain edit).")
+    guard_margin: float = setting(1.0, "The gain an edited window must show, in units of the target model's "
+                                       "resolution.")
+    support_z: float = setting(10.0, "A source window with a state more than this many target standard deviations "
+                                     "from the target's mean lies beyond the prior's support.")
+    outside_support: str = setting("keep", "Windows beyond the support: keep (the source's, unedited), drop (left "
+                                           "out) or edit (judged like the rest).")
 
     def __post_init__(self) -> None:
         checks = [
@@ -229,6 +242,10 @@ class EditConfig:
             (0.0 <= self.eta <= 1.0, f"eta must be in [0, 1], got {self.eta}"),
             (0.0 <= self.dynamics_weight <= 1.0, f"dynamics_weight must be in [0, 1], got {self.dynamics_weight}"),
             (self.eta == 0.0 or self.sampler == "ddim", "eta is for the ddim sampler only"),
+            (self.guard_margin >= 0, f"guard_margin must be >= 0, got {self.guard_margin}"),
+            (self.support_z > 0, f"support_z must be > 0, got {self.support_z}"),
+            (self.outside_support in OUTSIDE_SUPPORT,
+             f"outside_support must be one of {list(OUTSIDE_SUPPORT)}, got {self.outside_support!r}"),
         ]
         for ok, message in checks:
             if not ok:

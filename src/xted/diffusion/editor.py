@@ -37,6 +37,7 @@ from xted.data import Dataset, check_dimensions
 from xted.data.windows import tile_episodes
 from xted.diffusion.config import DenoiserConfig, EditConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse
+from xted.diffusion.guard import TargetModel, judge_windows, verdict_line, window_means
 from xted.diffusion.prior import Prior
 from xted.diffusion.schedule import (
     Schedule,
@@ -45,7 +46,9 @@ from xted.diffusion.schedule import (
     ddpm_step,
     q_sample,
 )
-from xted.envs.make import observation_bounds
+from xted.envs.make import action_bounds, observation_bounds
+from xted.envs.termination import Termination
+from xted.envs.termination import termination as termination_rule
 from xted.errors import InputError
 
 
@@ -252,6 +255,7 @@ Dynamics = Callable[[np.ndarray, np.ndarray], np.ndarray]  # (observations, acti
 
 def edit_dataset(
     prior: Prior, source: Dataset, config: EditConfig, progress: bool = False, dynamics: Dynamics | None = None,
+    target_model: TargetModel | None = None, termination: Termination | None = None,
 ) -> tuple[Dataset, dict[str, Any]]:
     """Edit every episode of ``source`` with ``prior``; returns the edited dataset and a report.
 
@@ -329,31 +333,87 @@ def edit_dataset(
         denormalize = functools.partial(prior.normalizer.denormalize, fields[stream])
         return (raw[stream][rows] + (denormalize(values) - denormalize(norm[stream][rows]))).astype(np.float32)
 
-    observations = source.observations.copy()
-    next_out = next_observations.copy()
-    actions = source.actions.copy()
-    rewards = source.rewards.copy()
     t = tiling.transition_steps
-    states, next_states = transitions("state", 0), transitions("state", 1)
+    edited_t = {"observations": transitions("state", 0), "next_observations": transitions("state", 1),
+                "actions": transitions("action", 0)}
+    if cfg.use_reward:
+        edited_t["rewards"] = transitions("reward", 0)[:, 0]
     bounds = observation_bounds(prior.env)  # walker2d observes velocities within +-10
     clipped = 0
     if bounds is not None and len(bounds[0]) == cfg.state_dim:  # an edit may leave the observation space
-        clipped = int(np.any((next_states < bounds[0]) | (next_states > bounds[1]), axis=1).sum())
-        states, next_states = (np.clip(x, *bounds).astype(np.float32) for x in (states, next_states))
-    observations[t], next_out[t] = states, next_states
-    actions[t] = transitions("action", 0)
-    if cfg.use_reward:
-        rewards[t] = transitions("reward", 0)[:, 0]
-    result = Dataset(
-        observations=observations, actions=actions, rewards=rewards, terminals=source.terminals,
-        timeouts=source.timeouts, next_observations=next_out, metadata=metadata,
-    )
+        clipped = int(np.any((edited_t["next_observations"] < bounds[0]) | (edited_t["next_observations"] > bounds[1]),
+                             axis=1).sum())
+        for name in ("observations", "next_observations"):
+            edited_t[name] = np.clip(edited_t[name], *bounds).astype(np.float32)
+    keep, drop = np.ones(len(t), bool), np.zeros(len(t), bool)
+    report: dict[str, Any] = {}
+    if config.guard:
+        model = target_model or prior.target_model
+        if model is None:
+            raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
+                             "none (trained before xted fitted one): give the target data (xted edit --target, "
+                             "Prior.edit(target=...)), or edit without the guard (guard=false: the paper's plain edit)")
+        report["guard"], edited_t, verdict = _guard(prior, source, next_observations, tiling, norm["state"], edited_t,
+                                                    config, model, termination)
+        keep, drop = verdict.edit[tiling.transition_window], verdict.drop[tiling.transition_window]
+
+    columns = {"observations": source.observations, "next_observations": next_observations,
+               "actions": source.actions, "rewards": source.rewards}
+    out = {name: array.copy() for name, array in columns.items()}
+    for name, values in edited_t.items():
+        out[name][t[keep]] = values[keep]
+    result = Dataset(**out, terminals=source.terminals, timeouts=source.timeouts, metadata=metadata)
+    if drop.any():
+        result = _without_rows(result, t[drop])
     report = {
         "windows": int(len(tiling.window_rows)),
-        "transitions": int(len(t)),
+        "transitions": int(keep.sum()),
         "passed_through_episodes": int(tiling.passed_through.sum()),
         "clipped_to_observation_space": clipped,
         "dropped_extras": sorted(source.extras),
+        **report,
         "seconds": time.perf_counter() - began,
     }
     return result, report
+
+
+def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling: Any, source_states: np.ndarray,
+           edited: dict[str, np.ndarray], config: EditConfig, model: TargetModel, termination: Termination | None
+           ) -> tuple[dict[str, Any], dict[str, np.ndarray], Any]:
+    """Judge every window (:func:`xted.diffusion.guard.judge_windows`) and clip edited actions into the
+    action space; returns the guard's report, the edited transitions and the verdict."""
+    t, windows, n_windows = tiling.transition_steps, tiling.transition_window, len(tiling.window_rows)
+    source_error = model.errors(source.observations[t], source.actions[t], next_observations[t])
+    edited_error = model.errors(edited["observations"], edited["actions"], edited["next_observations"])
+    farthest = np.abs(source_states[tiling.window_rows]).max(axis=(1, 2))  # target standard deviations
+    rule = termination or termination_rule(prior.env)
+    wrong_flag = np.zeros(len(t), bool) if rule is None else rule(edited["next_observations"]) != source.terminals[t]
+    verdict = judge_windows(window_means(source_error, windows, n_windows), window_means(edited_error, windows, n_windows),
+                            farthest > config.support_z, np.bincount(windows, wrong_flag, n_windows) > 0,
+                            model.resolution, config.guard_margin, config.outside_support)
+    kept = verdict.edit[windows]
+    low, high = action_bounds(prior.env) or (model.action_low, model.action_high)
+    outside_actions = np.any((edited["actions"] < low) | (edited["actions"] > high), axis=1) & kept
+    edited = {**edited, "actions": np.clip(edited["actions"], low, high).astype(np.float32)}
+    report = {
+        **verdict.counts,
+        "actions_clipped": int(outside_actions.sum()),
+        "termination_rule": rule is not None,
+        "edited_states_outside_target_range": int((model.outside_range(edited["next_observations"]) & kept).sum()),
+        "source_error": float(source_error.mean()),
+        "edited_error": float(edited_error.mean()),
+        "resolution": model.resolution,
+    }
+    report["verdict"] = verdict_line(verdict.counts, report["source_error"], model.resolution)
+    return report, edited, verdict
+
+
+def _without_rows(data: Dataset, rows: np.ndarray) -> Dataset:
+    """``data`` less ``rows``; a kept transition followed by a removed one ends its episode (a timeout)."""
+    keep = np.ones(len(data), bool)
+    keep[rows] = False
+    before_gap = keep & ~np.append(keep[1:], True)
+    timeouts = data.timeouts | (before_gap & ~data.terminals)
+    return Dataset(observations=data.observations[keep], actions=data.actions[keep], rewards=data.rewards[keep],
+                   terminals=data.terminals[keep], timeouts=timeouts[keep],
+                   next_observations=data.next_observations[keep], metadata=data.metadata)

@@ -19,6 +19,7 @@ from xted.fields import known_fields
 from xted.data import Dataset, Normalizer
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser
+from xted.diffusion.guard import TargetModel, fit_target_model
 from xted.diffusion.schedule import Schedule, cosine_schedule
 from xted.errors import InputError
 from xted.jsonfiles import read_json
@@ -50,6 +51,7 @@ class Prior:
     step: int = 0
     path: str | None = None
     env: str | None = None  # the env of the target data, where it said
+    target_model: TargetModel | None = None  # the guard's (xted.diffusion.guard); None in older priors
 
     @property
     def model(self) -> Denoiser:
@@ -60,14 +62,21 @@ class Prior:
         return cosine_schedule(self.config.num_timesteps)
 
     def edit(self, source: Dataset, kappa: float = 0.5, seed: int = 0, progress: bool = False,
-             dynamics: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None, **fields: Any) -> Dataset:
-        """``source`` edited toward this prior's target dynamics (:func:`xted.diffusion.editor.edit_dataset`);
-        ``fields`` set any other :class:`EditConfig` field (``temperature``, ``sampler``, ...);
-        ``dynamics`` (opt-in) projects the edited states onto a target dynamics model's rollout."""
+             dynamics: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None, target: Dataset | None = None,
+             termination: Callable[[np.ndarray], np.ndarray] | None = None, **fields: Any) -> Dataset:
+        """``source`` edited toward this prior's target dynamics (:func:`xted.diffusion.editor.edit_dataset`),
+        guarded by default (``guard=False``: the paper's plain edit); ``fields`` set any other
+        :class:`EditConfig` field (``temperature``, ``sampler``, ...). ``target``: target data to fit the
+        guard's model to, for a prior that holds none; ``termination``: the target's termination rule
+        (next observations -> terminal) where xted does not know the env. ``dynamics`` (opt-in) projects
+        the edited states onto a target dynamics model's rollout. The edit's report is the result's
+        ``metadata["edit"]["report"]``."""
         from xted.diffusion.editor import edit_dataset
 
         config = EditConfig(kappa=kappa, seed=seed, **known_fields(EditConfig, fields))
-        return edit_dataset(self, source, config, progress, dynamics)[0]
+        model = None if target is None or not config.guard else fit_target_model(target, seed=seed)
+        edited, report = edit_dataset(self, source, config, progress, dynamics, model, termination)
+        return edited.with_metadata(edit={**edited.metadata["edit"], "report": report})
 
 
 EXPORTED_PARAMS = "params.msgpack"
@@ -87,6 +96,8 @@ def export_prior(prior_dir: str | Path, dest: str | Path, provenance: dict[str, 
         (tmp / "prior.json").write_text(json.dumps(meta, indent=1))
         payload = {"params": jax.device_get(prior.params), "step": prior.step}
         (tmp / EXPORTED_PARAMS).write_bytes(flax.serialization.msgpack_serialize(payload))
+        if prior.target_model is not None:
+            prior.target_model.save(tmp)
     return dest
 
 
@@ -121,4 +132,5 @@ def load_prior(out_dir: str | Path) -> Prior:
         step=step,
         path=str(out_dir.resolve()),
         env=meta.get("data", {}).get("env"),
+        target_model=TargetModel.load(out_dir),
     )

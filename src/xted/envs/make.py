@@ -6,6 +6,7 @@ in a temporary folder, loaded once and removed. Nothing is written into installe
 
 from __future__ import annotations
 
+import functools
 import tempfile
 import warnings
 from pathlib import Path
@@ -87,6 +88,23 @@ def observation_bounds(env: str | None) -> tuple[np.ndarray, np.ndarray] | None:
     model = simulator(domain)[0]
     high = np.concatenate([np.full(model.nq - 1, np.inf), np.full(model.nv, clip)])
     return -high, high
+
+
+def action_bounds(env: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(low, high)`` of ``env``'s action space, or None for an env xted does not know."""
+    if env not in ENV_IDS:
+        return None
+    space = _action_space(env)
+    return space.low.copy(), space.high.copy()
+
+
+@functools.cache
+def _action_space(env: str) -> gym.spaces.Box:
+    instance = gym.make(ENV_IDS[env])
+    try:
+        return instance.action_space
+    finally:
+        instance.close()
 
 
 def forward_velocity_index(domain: Domain) -> int:

@@ -12,6 +12,7 @@ from xted.analysis import fit_proxy
 from xted.data import Dataset, load
 from xted.data.augment import gaussian_copy
 from xted.diffusion.editor import edit_dataset
+from xted.diffusion.guard import fit_target_model
 from xted.diffusion.transitions import TransitionModelConfig, sample_transitions, train_transition_model
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
@@ -23,12 +24,17 @@ from xted.rl.offline_train import train_offline
 
 def edited(cell: DataCell, source: Dataset) -> Dataset:
     """The source edited with the cell's prior, as ``xted edit`` does (``--project-dynamics`` where
-    the cell names a dynamics model)."""
+    the cell names a dynamics model; the guard's target model fitted to the row's target where the
+    prior holds none)."""
     dynamics = None
     if cell.dynamics is not None:
         target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
         dynamics = fit_proxy(target, cell.dynamics.proxy, progress=False).predict
-    data, _ = edit_dataset(load_prior(cell.prior), source, cell.edit, dynamics=dynamics)
+    prior = load_prior(cell.prior)
+    target_model = None
+    if cell.edit.guard and prior.target_model is None:  # a prior from before the guard: fit its model here
+        target_model = fit_target_model(load(f"{cell.env}-{cell.target}"), seed=cell.edit.seed)
+    data, _ = edit_dataset(prior, source, cell.edit, dynamics=dynamics, target_model=target_model)
     return data
 
 

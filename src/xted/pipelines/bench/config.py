@@ -18,10 +18,14 @@ AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER)
 # the grid, unedited or edited by the one prior.
 TGT_ALL_SRC, TGT_ALL_EDITED = "Tgt+All Src", "Tgt+All Edited"
 MULTI_SOURCE_COLUMNS = (TGT_ALL_SRC, TGT_ALL_EDITED)
-COLUMNS = TABLE_COLUMNS + AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS
+# The guarded edit (xted's default edit, beyond the paper): Tgt+Edited's source edited with the guard on.
+TGT_GUARDED, TGT_GUARDED_DARA = "Tgt+Guarded", "Tgt+Guarded DARA"
+GUARDED_COLUMNS = (TGT_GUARDED, TGT_GUARDED_DARA)
+COLUMNS = TABLE_COLUMNS + GUARDED_COLUMNS + AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS
 PER_TARGET_COLUMNS = AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS  # one cell per target, not per gap: rows of their own
-DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA)  # DARA's reward correction on the source's share: the paper's Table 2
-EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA)
+# DARA's reward correction on the source's share: the paper's Table 2
+DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA, TGT_GUARDED_DARA)
+EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA, *GUARDED_COLUMNS)
 PRIOR_COLUMNS = (*EDITED_COLUMNS, TGT_SELF_EDIT, TGT_GEN, TGT_ALL_EDITED)  # read a prior's output
 DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
 

@@ -47,7 +47,8 @@ def edit_label(row: dict) -> str:
     if "edit_config" not in row:
         return " ".join(row.get("edit") or []) or "default"
     defaults = dataclasses.asdict(EditConfig())
-    changed = [f"{key}={value}" for key, value in row["edit_config"].items()
+    recorded = {"guard": False, **row["edit_config"]}  # rows from before the guard are plain edits
+    changed = [f"{key}={value}" for key, value in recorded.items()
                if key not in ("kappa", "seed", "dynamics_weight") and key in defaults and value != defaults[key]]
     if row.get("project_dynamics"):  # the weight matters only with a dynamics model
         changed.append(f"project-dynamics w={row['edit_config']['dynamics_weight']}")

@@ -28,9 +28,10 @@ from xted.analysis.config import ProxyConfig
 from xted.fields import apply_overrides
 from xted.data import Dataset, load, shipped
 from xted.data.augment import S4RL_STATE_STD
-from xted.diffusion.config import EditConfig, PriorConfig
+from xted.diffusion.config import GUARD_FIELDS, EditConfig, PriorConfig
 from xted.diffusion.config import preset as prior_preset
 from xted.diffusion.config import presets as prior_presets
+from xted.diffusion.guard import TARGET_MODEL_FILE
 from xted.diffusion.prior import read_prior_json
 from xted.diffusion.transitions import TransitionModelConfig
 from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
@@ -39,6 +40,7 @@ from xted.errors import InputError
 from xted.pipelines.bench.config import (
     DARA_BACKBONE,
     DARA_COLUMNS,
+    GUARDED_COLUMNS,
     PER_TARGET_COLUMNS,
     PRIOR_COLUMNS,
     SRC,
@@ -47,6 +49,8 @@ from xted.pipelines.bench.config import (
     TGT_ALL_SRC,
     TGT_EDITED,
     TGT_EDITED_DARA,
+    TGT_GUARDED,
+    TGT_GUARDED_DARA,
     TGT_GEN,
     TGT_ORACLE,
     TGT_S4RL,
@@ -77,9 +81,10 @@ def cell_key(inputs: dict) -> str:
 
 
 def folder_fingerprint(folder: Path) -> str:
-    """SHA-256 of every file's relative path and bytes: exact identity of a prior folder."""
+    """SHA-256 of every file's relative path and bytes: exact identity of a prior folder, less its
+    guard's target model (a plain edit never reads it; a guarded edit's key names it apart)."""
     digest = hashlib.sha256()
-    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != TARGET_MODEL_FILE):
         digest.update(str(path.relative_to(folder)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
@@ -242,11 +247,15 @@ def edit_identity(edit: EditConfig, projected: bool) -> dict:
         fields.pop("dynamics_weight")
     if edit.hold_first:
         fields.pop("hold_first")
+    if not edit.guard:  # the plain edit, keyed as before the guard existed
+        for name in GUARD_FIELDS:
+            fields.pop(name)
     return fields
 
 
 def edit_config(config: BenchConfig) -> EditConfig:
-    return dataclasses.replace(apply_overrides(EditConfig(), list(config.edit)), kappa=config.kappa)
+    """The plain edit (the paper's, the Tgt+Edited column's) at ``--kappa`` with ``--edit``'s overrides."""
+    return dataclasses.replace(apply_overrides(EditConfig(guard=False), list(config.edit)), kappa=config.kappa)
 
 
 def algo_configs(config: BenchConfig, algo: str) -> tuple[AlgoConfig, DARAConfig | None]:
@@ -295,11 +304,10 @@ def plan(config: BenchConfig) -> Grid:
         return dataclasses.replace(cell, folder=str(Path(config.cache) / env / cell.name))
 
     def data_cell(kind: str, env: str, gap: str | None, target: str | None = None,
-                  prior: Path | PriorCell | None = None, augment: EditConfig | None = None) -> DataCell:
-        """An edit or oracle of the ``gap`` source; with ``gap`` None, data made from the target
-        itself: an edit with the ``augment`` config (never projected), an ``s4rl`` copy or ``ser`` samples."""
+                  prior: Path | PriorCell | None = None, this_edit: EditConfig = edit) -> DataCell:
+        """An edit (by ``this_edit``) or oracle of the ``gap`` source; with ``gap`` None, data made from
+        the target itself: an edit (never projected), an ``s4rl`` copy or ``ser`` samples."""
         source = f"{env}-{gap}" if gap is not None else f"{env}-{target}"
-        this_edit = augment or edit
         trained = prior if isinstance(prior, PriorCell) else None
         dynamics = None
         if kind == "edit":
@@ -309,9 +317,13 @@ def plan(config: BenchConfig) -> Grid:
                 meta = read_prior_json(prior / "prior.json")
                 check_same_env(env, meta.get("data", {}).get("env"), f"the prior {prior}")
                 identity = folder_fingerprint(prior)
-            projected = config.project_dynamics and augment is None
+            projected = config.project_dynamics and gap is not None
             inputs = {"kind": kind, "source": fingerprint(source), "prior": identity,
                       "edit": edit_identity(this_edit, projected)}
+            if this_edit.guard and trained is None:  # a bench-trained prior's key covers its target model
+                shipped_model = prior / TARGET_MODEL_FILE
+                inputs["target_model"] = (hashlib.sha256(shipped_model.read_bytes()).hexdigest() if shipped_model.is_file()
+                                          else {"fitted_to": fingerprint(f"{env}-{target}")})
             if projected:
                 dynamics = DynamicsModel(f"{env}-{target}", config.transitions,
                                          ProxyConfig(steps=config.dynamics_proxy_steps, seed=edit.seed))
@@ -334,6 +346,7 @@ def plan(config: BenchConfig) -> Grid:
     # predicted x_0 is clipped (unless --edit sets a bound): unclipped, the chain's first steps blow up.
     full_chain = dataclasses.replace(edit, kappa=1.0, clip_denoised=edit.clip_denoised or FULL_CHAIN_CLIP)
     augments = {TGT_SELF_EDIT: full_chain, TGT_GEN: dataclasses.replace(full_chain, hold_first=False)}
+    guarded_edit = dataclasses.replace(edit, guard=True)
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
 
@@ -367,6 +380,8 @@ def plan(config: BenchConfig) -> Grid:
             if set(PRIOR_COLUMNS) & set(config.columns):
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
             edits = {gap: data_cell("edit", env, gap, target_level, prior) for gap in config.gaps} if prior else {}
+            guarded = {gap: data_cell("edit", env, gap, target_level, prior, guarded_edit)
+                       for gap in config.gaps} if prior and set(GUARDED_COLUMNS) & set(table) else {}
             for gap in config.gaps:
                 source = f"{env}-{gap}"
                 trainings: dict[str, tuple[str | DataCell, ...] | None] = {
@@ -375,6 +390,7 @@ def plan(config: BenchConfig) -> Grid:
                     TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
                 }
                 trainings[TGT_EDITED_DARA] = trainings[TGT_EDITED]
+                trainings[TGT_GUARDED] = trainings[TGT_GUARDED_DARA] = (target, guarded[gap]) if guarded else None
                 add_rows(env, target_level, gap, {column: trainings[column] for column in table})
             if not per_target:
                 continue

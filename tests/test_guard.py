@@ -1,0 +1,157 @@
+"""The guarded edit: which windows it keeps, and that every edited transition it keeps is valid."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import flax.linen as nn
+import jax
+import numpy as np
+import pytest
+from conftest import build_dataset
+from test_diffusion import TINY
+from test_editor import BATCH, LENGTHS, random_prior
+
+from xted.diffusion import EditConfig, edit_dataset
+from xted.diffusion.guard import TargetModel, fit_target_model, judge_windows, window_means
+from xted.envs.termination import termination
+from xted.errors import InputError
+from xted.nn import MLP, FittedMLP
+
+
+def constant_model(delta: np.ndarray, action_range: float = 1.0, resolution: float = 0.0) -> TargetModel:
+    """A target model predicting ``s' = s + delta`` whatever the action (zero output spread)."""
+    d, a = len(delta), 2
+    params = MLP((4,), d, activation=nn.silu).init(jax.random.key(0), np.zeros((1, d + a), np.float32))
+    mlp = FittedMLP(hidden=(4,), params=params, input_mean=np.zeros(d + a, np.float32),
+                    input_std=np.ones(d + a, np.float32), output_mean=np.asarray(delta, np.float32),
+                    output_std=np.zeros(d, np.float32))
+    return TargetModel(mlp, resolution, np.full(a, -action_range, np.float32), np.full(a, action_range, np.float32),
+                       np.full(d, -1.0, np.float32), np.full(d, 1.0, np.float32))
+
+
+@pytest.fixture(scope="module")
+def prior():
+    return random_prior(TINY)
+
+
+def source_following(delta: np.ndarray, shift: float = 0.0, seed: int = 1):
+    """Episodes whose every next state is ``s + delta + shift``, but each episode's final one
+    ``s + delta`` (so that the source's states stay inside the prior's support)."""
+    data = build_dataset(lengths=LENGTHS, obs_dim=3, act_dim=2, seed=seed)
+    next_observations = data.observations + delta + shift
+    last = data.terminals | data.timeouts
+    next_observations[last] -= shift
+    return dataclasses.replace(data, next_observations=next_observations)
+
+
+def test_judge_windows_keeps_an_edit_only_inside_the_support_valid_and_with_a_gain_beyond_the_margin():
+    source = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    edited = np.array([0.2, 0.95, 0.2, 0.2, 0.2, 0.2])
+    outside = np.array([False, False, True, False, True, True])
+    invalid = np.array([False, False, False, True, False, False])
+    verdict = judge_windows(source, edited, outside, invalid, resolution=0.1, margin=1.0, outside_action="keep")
+    assert verdict.edit.tolist() == [True, False, False, False, False, False]
+    assert not verdict.drop.any()
+    assert verdict.counts == {"windows": 6, "edited": 1, "source_outside_support": 3, "dropped_outside_support": 0,
+                              "source_invalid_edit": 1, "source_no_gain": 1}
+    dropped = judge_windows(source, edited, outside, invalid, 0.1, 1.0, "drop")
+    assert dropped.drop.tolist() == outside.tolist() and dropped.counts["dropped_outside_support"] == 3
+    anyway = judge_windows(source, edited, outside, invalid, 0.1, 1.0, "edit")
+    assert anyway.edit.tolist() == [True, False, True, False, True, True]
+    wide = judge_windows(source, edited, outside, invalid, 0.1, 9.0, "edit")  # a gain of 0.8 < 9 x 0.1
+    assert not wide.edit.any() and wide.counts["source_no_gain"] == 5
+
+
+def test_window_means():
+    np.testing.assert_allclose(window_means(np.array([1.0, 3.0, 5.0]), np.array([0, 0, 2]), 3), [2.0, 0.0, 5.0])
+
+
+def test_termination_rules():
+    walker = np.zeros((4, 17))
+    walker[:, 0] = [1.2, 0.5, 1.2, 2.5]
+    walker[:, 1] = [0.0, 0.0, 1.5, 0.0]
+    assert termination("walker2d")(walker).tolist() == [False, True, True, True]
+    assert termination("Walker2d-v5") is termination("walker2d")
+    assert not termination("halfcheetah")(np.full((3, 17), 50.0)).any()
+    hopper = np.zeros((3, 11))
+    hopper[:, 0] = [1.2, 0.5, 1.2]
+    hopper[2, 5] = 150.0
+    assert termination("hopper")(hopper).tolist() == [False, True, True]
+    assert termination("my-robot") is None and termination(None) is None
+
+
+def test_a_source_already_consistent_with_the_target_comes_back_unchanged(prior):
+    delta = np.array([0.1, -0.2, 0.3])
+    source = source_following(delta)
+    result, report = edit_dataset(prior, source, EditConfig(batch_size=BATCH), target_model=constant_model(delta))
+    for name in ("observations", "actions", "rewards", "next_observations", "terminals", "timeouts"):
+        np.testing.assert_array_equal(getattr(result, name), getattr(source, name), err_msg=name)
+    guard = report["guard"]
+    assert guard["edited"] == 0 and guard["source_no_gain"] == guard["windows"] == 11
+    assert report["transitions"] == 0 and "keep the source" in guard["verdict"]
+
+
+def test_kept_edits_are_valid_transitions_and_the_rest_is_the_source(prior):
+    """A far-off source: the edits gain, so they are kept where valid; the toy termination rule makes
+    some invalid (those windows stay the source's); kept actions are clipped into the action space."""
+    delta = np.zeros(3)
+    source = source_following(delta, shift=50.0)
+    def rule(next_observations):
+        return next_observations[:, 0] > 0.5
+
+    model = constant_model(delta, action_range=0.05)
+    plain, _ = edit_dataset(prior, source, EditConfig(batch_size=BATCH, guard=False))
+    result, report = edit_dataset(prior, source, EditConfig(batch_size=BATCH), target_model=model, termination=rule)
+    guard = report["guard"]
+    assert guard["edited"] > 0 and guard["source_invalid_edit"] > 0
+    assert guard["edited"] + guard["source_invalid_edit"] + guard["source_no_gain"] == guard["windows"]
+    assert guard["actions_clipped"] > 0 and guard["termination_rule"]
+    changed = np.any(result.next_observations != source.next_observations, axis=1)
+    assert changed.sum() == report["transitions"] > 0
+    np.testing.assert_array_equal(rule(result.next_observations[changed]), result.terminals[changed])
+    np.testing.assert_array_equal(result.next_observations[changed], plain.next_observations[changed])
+    assert np.abs(result.actions[changed]).max() <= 0.05 < np.abs(plain.actions[changed]).max()
+    for name in ("observations", "actions", "rewards", "next_observations"):
+        np.testing.assert_array_equal(getattr(result, name)[~changed], getattr(source, name)[~changed], err_msg=name)
+
+
+def test_windows_beyond_the_support_are_kept_dropped_or_edited_by_option(prior):
+    delta = np.zeros(3)
+    source = source_following(delta, shift=50.0)
+    far = dataclasses.replace(source, observations=source.observations.copy())
+    far.observations[3] += 1e4  # one state, in the first episode's second window, far beyond the target's spread
+    model = constant_model(delta)
+    edit = EditConfig(batch_size=BATCH)
+    kept, report = edit_dataset(prior, far, edit, target_model=model)
+    inside_edited = report["guard"]["edited"]
+    assert report["guard"]["source_outside_support"] == 2  # the state is shared by the first two windows
+    np.testing.assert_array_equal(kept.observations[:6], far.observations[:6])
+    dropped, report = edit_dataset(prior, far, dataclasses.replace(edit, outside_support="drop"), target_model=model)
+    assert report["guard"]["dropped_outside_support"] == 2 and len(dropped) == len(far) - 6
+    assert dropped.num_episodes == far.num_episodes  # the cut episode keeps its tail as its own episode
+    anyway, report = edit_dataset(prior, far, dataclasses.replace(edit, outside_support="edit"), target_model=model)
+    judged = report["guard"]
+    assert judged["source_outside_support"] == 0 and judged["edited"] > inside_edited
+    assert judged["edited"] + judged["source_no_gain"] + judged["source_invalid_edit"] == judged["windows"]
+
+
+def test_a_prior_without_a_target_model_asks_for_target_data(prior):
+    source = source_following(np.zeros(3))
+    with pytest.raises(InputError, match="target data"):
+        edit_dataset(prior, source, EditConfig(batch_size=BATCH))
+
+
+def test_the_fitted_target_model_learns_the_targets_dynamics_and_round_trips(tmp_path):
+    rng = np.random.default_rng(0)
+    data = build_dataset(lengths=(40,) * 10, obs_dim=3, act_dim=2, seed=3)
+    data = dataclasses.replace(data, next_observations=data.observations + 0.5 * np.tanh(data.actions[:, :1]))
+    model = fit_target_model(data, seed=0)
+    assert model.resolution < 0.05  # a smooth rule, learned
+    noise = rng.normal(size=data.observations.shape)
+    assert model.errors(data.observations, data.actions, data.next_observations + noise).mean() > 10 * model.resolution
+    model.save(tmp_path)
+    again = TargetModel.load(tmp_path)
+    np.testing.assert_array_equal(again.predict(data.observations, data.actions),
+                                  model.predict(data.observations, data.actions))
+    assert again.resolution == model.resolution and TargetModel.load(tmp_path / "none") is None
