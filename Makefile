@@ -2,7 +2,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.xted-installed
 
-.PHONY: demo test install clean
+.PHONY: demo test install clean bench-grid
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -20,6 +20,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks examples
 	$(PY) -m pytest
+
+bench-grid: $(STAMP)
+	mkdir -p runs
+	setsid nohup $(PY) tools/bench_unattended.py > runs/bench-grid.log 2>&1 &
+	@echo "the bench grid runs in the background: runs/bench-grid.log (kill it any time; rerun to resume)"
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

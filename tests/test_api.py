@@ -27,8 +27,10 @@ def test_train_edit_measure_through_the_public_names(tmp_path):
     prior = xted.train_prior(loaded, out=tmp_path / "prior", steps=3, progress=False, preset="tiny")
     assert isinstance(prior, xted.Prior) and prior.step == 3 and prior.config.horizon == 4
     assert xted.load_prior(tmp_path / "prior").step == 3  # the folder, reloaded
-    edited = prior.edit(source, kappa=0.5, seed=0)
-    again = xted.load_prior(tmp_path / "prior").edit(source, kappa=0.5, seed=0)
+    edited = prior.edit(source, kappa=0.5, seed=0, guard=False)
+    again = xted.load_prior(tmp_path / "prior").edit(source, kappa=0.5, seed=0, guard=False)
+    guarded = prior.edit(source, kappa=0.5, seed=0)  # the default: the target model was fitted when training ended
+    assert guarded.metadata["edit"]["report"]["guard"]["windows"] == edited.metadata["edit"]["report"]["windows"]
     assert isinstance(edited, xted.Dataset) and len(edited) == len(source)
     np.testing.assert_array_equal(edited.observations, again.observations)  # same seed, same edit
     assert not np.allclose(edited.observations[1:9], source.observations[1:9])

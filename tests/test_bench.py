@@ -339,9 +339,9 @@ def test_projected_edits_are_keyed_apart_and_projected_onto_a_model_of_the_row_s
         fitted.append((len(target), proxy_config.steps))
         return real_fit(target, proxy_config, progress)
 
-    def edit_dataset(prior, source, edit, dynamics=None):
+    def edit_dataset(prior, source, edit, dynamics=None, target_model=None):
         projections.append(dynamics)
-        return real_edit(prior, source, edit, dynamics=dynamics)
+        return real_edit(prior, source, edit, dynamics=dynamics, target_model=target_model)
 
     monkeypatch.setattr(cells, "fit_proxy", fit_proxy)
     monkeypatch.setattr(cells, "edit_dataset", edit_dataset)
@@ -584,3 +584,13 @@ def test_the_committed_lite_table_is_found_under_today_s_cell_keys(env):
     columns = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE)
     rows = task_rows(env, "medium-replay", "thigh", columns, str(store))
     assert [row["n_seeds"] for row in rows] == [5] * len(columns), rows
+
+
+def test_the_guarded_columns_edit_with_the_guard_and_are_keyed_apart_from_the_plain_edit(tmp_path):
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited", "Tgt+Guarded", "Tgt+Guarded DARA"),
+                         seeds=(0,))
+    by_column = {cell.column: cell for cell in plan(config).learners.values()}
+    plain, guarded = by_column["Tgt+Edited"].data_cell, by_column["Tgt+Guarded"].data_cell
+    assert not plain.edit.guard and guarded.edit.guard and guarded.key != plain.key
+    assert by_column["Tgt+Guarded DARA"].data_cell.key == guarded.key
+    assert "guard" not in plain.inputs["edit"] and "target_model" in guarded.inputs

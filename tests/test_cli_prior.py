@@ -37,7 +37,7 @@ def test_train_writes_config_log_and_checkpoints(files):
 def test_edit_cli_writes_the_named_format(files, capsys):
     out = files / "edited.npz"
     assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"),
-                 "--out", str(out), "--kappa", "0.5", "--seed", "3"]) == 0
+                 "--out", str(out), "--kappa", "0.5", "--seed", "3", "--no-guard"]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     edited, source = load(out), load(files / "source.hdf5")
     assert report["transitions"] == len(source) == len(edited)
@@ -47,7 +47,7 @@ def test_edit_cli_writes_the_named_format(files, capsys):
 
 
 def test_edit_cli_relabels_rewards_with_a_target_reward_proxy(files, capsys):
-    edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3"]
+    edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3", "--no-guard"]
     assert main([*edit, "--out", str(files / "plain.npz")]) == 0
     out = files / "relabelled.npz"
     assert main([*edit, "--out", str(out), "--relabel-rewards", str(files / "target.npz"),

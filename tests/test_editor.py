@@ -227,7 +227,7 @@ def test_guidance_zero_is_the_unconditional_prediction(prior):
     s, a, r = _windows()
     x = {"state": s, "action": a, "reward": r}
     t, returns = np.full(BATCH, 3), np.full(BATCH, 0.9, np.float32)
-    eps = {w: _predict_noise(prior.params, _plan(prior, EditConfig(guard=False, guidance=w)), x, t, returns) for w in (0.0, 0.5, 1.0)}
+    eps = {w: _predict_noise(prior.params, _plan(prior, EditConfig(guidance=w)), x, t, returns) for w in (0.0, 0.5, 1.0)}
     for stream in x:
         np.testing.assert_allclose(eps[0.0][stream], 2 * eps[0.5][stream] - eps[1.0][stream], rtol=1e-4, atol=1e-5)
         assert not np.allclose(eps[0.0][stream], eps[1.0][stream])

@@ -155,3 +155,17 @@ def test_the_fitted_target_model_learns_the_targets_dynamics_and_round_trips(tmp
     np.testing.assert_array_equal(again.predict(data.observations, data.actions),
                                   model.predict(data.observations, data.actions))
     assert again.resolution == model.resolution and TargetModel.load(tmp_path / "none") is None
+
+
+def test_the_diagnosis_chooses_a_kappa_where_edits_gain_and_none_where_the_source_is_already_right(prior):
+    from xted.diffusion.diagnosis import diagnose_edit
+
+    delta = np.zeros(3)
+    model = constant_model(delta)
+    far = diagnose_edit(prior, source_following(delta, shift=50.0), EditConfig(batch_size=BATCH), kappas=(0.2, 0.5),
+                        episodes=3, target_model=model)
+    assert far["episodes"] == 3 and [row["kappa"] for row in far["kappas"]] == [0.2, 0.5]
+    assert far["kappa"] in (0.2, 0.5) and far["kappas"][0]["score"] < far["kappas"][0]["source_error"]
+    right = diagnose_edit(prior, source_following(delta), EditConfig(batch_size=BATCH), kappas=(0.2, 0.5),
+                          target_model=model)
+    assert right["kappa"] is None and "keep the source" in right["verdict"]

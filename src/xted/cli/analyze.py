@@ -43,6 +43,53 @@ def dynamics(
               f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f} {row['reward']['mae']:9.4f} {row['reward']['bias']:9.4f}")
 
 
+@app.command("edit-plan")
+def edit_plan(
+    sources: List[str] = typer.Argument(..., help="Source datasets (paths or shipped names)."),
+    prior: str = typer.Option(..., "--prior", help="Prior folder or a shipped prior's name."),
+    target: Optional[str] = typer.Option(None, "--target",
+                                         help="Target data to fit the guard's model to, for a prior that holds none."),
+    kappas: str = typer.Option("0.1,0.2,0.3,0.5,0.7", "--kappas", help="Candidate kappas, comma-separated."),
+    episodes: int = typer.Option(40, "--episodes", min=1, help="Source episodes sampled per kappa."),
+    seed: int = typer.Option(0, "--seed", min=0),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Before any learner, no simulator needed: per source, the share of windows beyond the prior's
+    support, its mismatch against the target model's resolution, the kappa to edit at, and whether
+    the guarded edit is expected to help or keep the source as it is."""
+    from xted.api import load_prior
+    from xted.data import check_dimensions, load
+    from xted.diffusion.config import EditConfig
+    from xted.diffusion.diagnosis import diagnose_edit
+    from xted.diffusion.guard import fit_target_model
+    from xted.errors import InputError
+
+    try:
+        candidates = tuple(sorted(float(k) for k in kappas.split(",")))
+    except ValueError:
+        raise InputError(f"--kappas must be numbers separated by commas, got {kappas!r}") from None
+    model = load_prior(prior)
+    data = {name: load(name) for name in sources}
+    for name, source in data.items():
+        check_dimensions(source, (model.config.state_dim, model.config.action_dim), name, "the prior's training data")
+    configs = [EditConfig(kappa=k) for k in candidates]  # each kappa checked before any edit runs
+    target_model = None if target is None else fit_target_model(load(target), seed=seed)
+    results = {name: diagnose_edit(model, source, configs[0], candidates, episodes, target_model, seed=seed)
+               for name, source in data.items()}
+    if as_json:
+        print(json.dumps({"prior": prior, "sources": results}))
+        return
+    for name, result in results.items():
+        first = result["kappas"][0]
+        print(f"{name}: {first['outside_support_share']:.0%} of windows beyond the prior's support; one-step mismatch "
+              f"{first['source_error']:.3f} against the target model's resolution {first['resolution']:.3f}")
+        for row in result["kappas"]:
+            print(f"  kappa {row['kappa']:.2f}: score {row['score']:.3f}, {row['edited_share']:.0%} of windows edited")
+        chosen = "none (keep the source)" if result["kappa"] is None else f"{result['kappa']:g}"
+        print(f"  kappa: {chosen}: {result['reason']}")
+        print(f"  {result['verdict']}")
+
+
 @app.command("proxy")
 def proxy(
     datasets: List[str] = typer.Argument(..., help="Datasets to measure (paths or shipped names)."),

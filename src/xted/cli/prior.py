@@ -70,7 +70,7 @@ def edit(
     guard_target: Optional[str] = typer.Option(
         None, "--target",
         help="Target dataset to fit the guard's dynamics model to, for a prior that holds none (one trained "
-        "before xted fitted it); the guard is on unless --guard false."),
+        "before xted fitted it); the guard is on unless --no-guard."),
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),

@@ -283,6 +283,12 @@ def edit_dataset(
         source.require_rewards("editing with this prior's reward stream",
                                "edit it with a reward-free prior (trained on reward-free target data)")
     k = config.noise_steps(cfg.num_timesteps)
+    guard_model = target_model or prior.target_model
+    if config.guard and k > 0 and guard_model is None:
+        raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
+                         "none (trained before xted fitted one): give the target data (xted edit --target, "
+                         "Prior.edit(target=...)), or edit without the guard (--no-guard, guard=False: the paper's "
+                         "plain edit)")
     metadata = {
         **source.metadata,
         "edit": {"config": dataclasses.asdict(config), "prior": prior.path, "prior_step": prior.step, "noise_steps": k,
@@ -348,13 +354,8 @@ def edit_dataset(
     keep, drop = np.ones(len(t), bool), np.zeros(len(t), bool)
     report: dict[str, Any] = {}
     if config.guard:
-        model = target_model or prior.target_model
-        if model is None:
-            raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
-                             "none (trained before xted fitted one): give the target data (xted edit --target, "
-                             "Prior.edit(target=...)), or edit without the guard (guard=false: the paper's plain edit)")
         report["guard"], edited_t, verdict = _guard(prior, source, next_observations, tiling, norm["state"], edited_t,
-                                                    config, model, termination)
+                                                    config, guard_model, termination)
         keep, drop = verdict.edit[tiling.transition_window], verdict.drop[tiling.transition_window]
 
     columns = {"observations": source.observations, "next_observations": next_observations,
@@ -392,6 +393,7 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
                             farthest > config.support_z, np.bincount(windows, wrong_flag, n_windows) > 0,
                             model.resolution, config.guard_margin, config.outside_support)
     kept = verdict.edit[windows]
+    guarded_error = np.where(kept, edited_error, source_error)
     low, high = action_bounds(prior.env) or (model.action_low, model.action_high)
     outside_actions = np.any((edited["actions"] < low) | (edited["actions"] > high), axis=1) & kept
     edited = {**edited, "actions": np.clip(edited["actions"], low, high).astype(np.float32)}
@@ -402,6 +404,7 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
         "edited_states_outside_target_range": int((model.outside_range(edited["next_observations"]) & kept).sum()),
         "source_error": float(source_error.mean()),
         "edited_error": float(edited_error.mean()),
+        "guarded_error": float(guarded_error.mean()),
         "resolution": model.resolution,
     }
     report["verdict"] = verdict_line(verdict.counts, report["source_error"], model.resolution)

@@ -17,6 +17,7 @@ the source's window was; everywhere else the source's window stays as it was.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -99,16 +100,25 @@ def fit_target_model(target: Dataset, seed: int = 0, progress: bool = False) -> 
     measured (with a single episode, on its own training data); ``FIT_EPOCHS`` passes, within bounds."""
     heldout_episodes = int(round(HELDOUT_SHARE * target.num_episodes))
     train, heldout = split_heldout(target, heldout_episodes, seed=seed) if heldout_episodes else (target, None)
-    steps = int(np.clip(FIT_EPOCHS * len(train) / 256, MIN_FIT_STEPS, MAX_FIT_STEPS))
-    inputs = np.concatenate([train.observations, train.actions], axis=1)
-    deltas = train.require_next_observations() - train.observations
-    dynamics = fit_mlp(inputs, deltas, _FitSettings(steps=steps, seed=seed), progress, desc="target model")
+    observations, actions, next_observations = _transitions(train)
+    steps = int(np.clip(FIT_EPOCHS * len(observations) / 256, MIN_FIT_STEPS, MAX_FIT_STEPS))
+    inputs = np.concatenate([observations, actions], axis=1)
+    dynamics = fit_mlp(inputs, next_observations - observations, _FitSettings(steps=steps, seed=seed), progress,
+                       desc="target model")
     model = TargetModel(dynamics, 0.0, target.actions.min(0), target.actions.max(0),
                         target.observations.min(0), target.observations.max(0))
-    measured_on = heldout or train
-    resolution = model.errors(measured_on.observations, measured_on.actions, measured_on.require_next_observations())
-    return TargetModel(dynamics, float(resolution.mean()), model.action_low, model.action_high,
-                       model.observation_low, model.observation_high)
+    resolution = model.errors(*_transitions(heldout or train)).mean()
+    return dataclasses.replace(model, resolution=float(resolution))
+
+
+def _transitions(data: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(s, a, s')`` of every transition whose next state is known: all where the data stores next
+    observations, else every step but each episode's last."""
+    if data.next_observations is not None:
+        return data.observations, data.actions, data.next_observations
+    inside = ~(data.terminals | data.timeouts)
+    rows = np.flatnonzero(inside)
+    return data.observations[rows], data.actions[rows], data.observations[rows + 1]
 
 
 def window_means(values: np.ndarray, windows: np.ndarray, n_windows: int) -> np.ndarray:

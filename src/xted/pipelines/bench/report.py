@@ -20,6 +20,8 @@ from xted.pipelines.bench.config import (
     TGT_EDITED,
     TGT_EDITED_DARA,
     TGT_GEN,
+    TGT_GUARDED,
+    TGT_GUARDED_DARA,
     TGT_S4RL,
     TGT_SELF_EDIT,
     TGT_SER,
@@ -77,6 +79,7 @@ def score_summary(scores: Sequence[float]) -> dict:
 # Aggregates over tasks: each edited column against its baselines, as the paper's claims read (Table 1;
 # Table 2 for DARA; §5.4 for augmentation, against Tgt and the two baselines; the multi-source appendix).
 IMPROVEMENTS = ((TGT_EDITED, TGT), (TGT_EDITED, TGT_SRC), (TGT_EDITED_DARA, TGT_SRC_DARA),
+                (TGT_GUARDED, TGT), (TGT_GUARDED, TGT_SRC), (TGT_GUARDED, TGT_EDITED), (TGT_GUARDED_DARA, TGT_SRC_DARA),
                 (TGT_SELF_EDIT, TGT), (TGT_GEN, TGT), (TGT_SELF_EDIT, TGT_S4RL), (TGT_SELF_EDIT, TGT_SER),
                 (TGT_ALL_EDITED, TGT_ALL_SRC), (TGT_ALL_EDITED, TGT))
 

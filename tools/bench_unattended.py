@@ -1,0 +1,86 @@
+"""Run the bench's remaining groups unattended, committing finished cells as they land.
+
+    python tools/bench_unattended.py [--queue benchmarks/grid_queue.txt] [--commit-every 1800] [--dry-run]
+    make bench-grid          # the same, in the background: setsid nohup ... > runs/bench-grid.log
+
+Each non-blank, non-comment line of the queue holds the options of one ``xted bench`` run, most
+informative first. The bench skips every cell already stored under its current key, so the runner can
+be killed at any point and restarted: it loses at most the group of seeds in flight. New result
+files under ``benchmarks/results/bench`` are committed (only they) when a run ends and, while one
+runs, whenever ``--commit-every`` seconds have passed since the last commit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+STORE = "benchmarks/results/bench"
+XTED = Path(sys.executable).with_name("xted")
+
+
+def queue_lines(path: Path) -> list[list[str]]:
+    lines = [line.strip() for line in path.read_text().splitlines()]
+    return [shlex.split(line) for line in lines if line and not line.startswith("#")]
+
+
+def commit_results(reason: str) -> bool:
+    """Commit new or changed files under the store; True where a commit was made."""
+    status = subprocess.run(["git", "status", "--porcelain", "--", STORE], cwd=ROOT, capture_output=True, text=True)
+    if not status.stdout.strip():
+        return False
+    subprocess.run(["git", "add", "--", STORE], cwd=ROOT, check=False)
+    count = len(status.stdout.strip().splitlines())
+    done = subprocess.run(["git", "commit", "-q", "-m", f"bench results: {count} cells ({reason}; tools/bench_unattended.py)",
+                           "--", STORE], cwd=ROOT, check=False)
+    return done.returncode == 0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--queue", type=Path, default=ROOT / "benchmarks" / "grid_queue.txt")
+    parser.add_argument("--commit-every", type=float, default=1800.0, help="Seconds between commits during a run.")
+    parser.add_argument("--dry-run", action="store_true", help="Print the bench commands and exit.")
+    args = parser.parse_args()
+    runs = queue_lines(args.queue)
+    if args.dry_run:
+        for options in runs:
+            print(shlex.join([str(XTED), "bench", *options]))
+        return
+
+    stopping = False
+
+    def stop(signum, frame):  # noqa: ARG001 - signal handler signature
+        nonlocal stopping
+        stopping = True
+
+    signal.signal(signal.SIGTERM, stop)
+    last_commit = time.monotonic()
+    for number, options in enumerate(runs, 1):
+        print(f"[{time.strftime('%H:%M:%S')}] run {number}/{len(runs)}: xted bench {shlex.join(options)}", flush=True)
+        process = subprocess.Popen([str(XTED), "bench", *options], cwd=ROOT)
+        while process.poll() is None:
+            time.sleep(10)
+            if stopping:
+                process.terminate()
+                process.wait()
+                break
+            if time.monotonic() - last_commit >= args.commit_every:
+                commit_results("periodic")
+                last_commit = time.monotonic()
+        commit_results(f"run {number} ended")
+        last_commit = time.monotonic()
+        if stopping:
+            print("stopped: finished cells are committed; rerun to go on", flush=True)
+            return
+    print(f"[{time.strftime('%H:%M:%S')}] the queue is done", flush=True)
+
+
+if __name__ == "__main__":
+    main()
