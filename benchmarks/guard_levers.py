@@ -37,10 +37,14 @@ from xted.envs.dynamics import dynamics_error
 FIELDS = {"state": "observations", "action": "actions", "reward": "rewards"}
 
 
-def auc(score: np.ndarray, label: np.ndarray) -> float:
+def auc(score: np.ndarray, label: np.ndarray) -> float | None:
+    """The probability that a window where the edit is worse scores above one where it is not; None
+    where every window (or none) is worse."""
     ranks, positives = rankdata(score), int(label.sum())
     negatives = len(label) - positives
-    return float((ranks[label].sum() - positives * (positives + 1) / 2) / max(positives * negatives, 1))
+    if not positives or not negatives:
+        return None
+    return float((ranks[label].sum() - positives * (positives + 1) / 2) / (positives * negatives))
 
 
 def main() -> None:
@@ -118,7 +122,8 @@ def main() -> None:
             mae = np.where(kept, per_transition["sim_edited"][steps], per_transition["sim_source"][steps]).mean()
             row["rules"][name] = {"sim_mae": float(mae), "edited_share": float(keep.mean())}
         print(f"\n{args.env} {gap}: {worse.mean():.0%} of windows worse after the plain edit (simulator)")
-        print("  AUC for 'edit worse': " + ", ".join(f"{k} {v:.2f}" for k, v in row["auc_edit_worse"].items()))
+        print("  AUC for 'edit worse': " + ", ".join(f"{k} {'-' if v is None else f'{v:.2f}'}"
+                                                      for k, v in row["auc_edit_worse"].items()))
         for name, result in row["rules"].items():
             print(f"  {name:45s} sim MAE {result['sim_mae']:.3f}, {result['edited_share']:.0%} edited")
         if args.out:

@@ -6,9 +6,11 @@
 With the shipped ``ENV-medium-replay-cpu`` prior (its target model shipped beside it), per source:
 simulator one-step MAE of the source, the plain edit and the guarded edit; their reward MAE; the
 transitions stepping into a state the target ends an episode on while flagged non-terminal; actions
-outside the action space; the guard's counts; the edit's wall time. The floor is the plain edit of
-the two target episodes the prior never saw; the bound the guarded edit is held to is the larger of
-the source's error and 1.5x that floor.
+outside the action space; the guard's counts; the edit's wall time; and the guarded edit's rewards
+relabelled by a reward proxy fitted to the prior's training episodes (``xted edit --relabel-rewards``),
+against the prior's own reward stream. The floor is the plain edit of the two target episodes the
+prior never saw; the bound the guarded edit is held to is the larger of the source's error and 1.5x
+that floor, and its reward error's the source's plus the floor's.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from xted.analysis import simulator_measures
+from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards, simulator_measures
 from xted.data import load, shipped, split_heldout
 from xted.diffusion.config import EditConfig
 from xted.diffusion.editor import edit_dataset
@@ -55,27 +57,32 @@ def main() -> None:
     prior = load_prior(shipped.prior_dir(f"{args.env}-medium-replay-cpu"))
     guarded = apply_overrides(EditConfig(), args.edit)
     plain = dataclasses.replace(guarded, guard=False)
-    _, heldout = split_heldout(load(f"{args.env}-medium-replay"), FLOOR_EPISODES)
-    floor = simulator_measures(domain, edit_dataset(prior, heldout, plain)[0])["mae"]
-    print(f"{args.env}: floor (plain edit of held-out target episodes) {floor:.3f}; "
+    train, heldout = split_heldout(load(f"{args.env}-medium-replay"), FLOOR_EPISODES)
+    floor_measures = simulator_measures(domain, edit_dataset(prior, heldout, plain)[0])
+    floor, floor_reward = floor_measures["mae"], floor_measures["reward_mae"]
+    reward_proxy = fit_reward_proxy(train, ProxyConfig(), progress=False)
+    print(f"{args.env}: floor (plain edit of held-out target episodes) {floor:.3f}, its reward MAE {floor_reward:.3f}; "
           f"target model resolution {prior.target_model.resolution:.3f}")
-    print("| gap | sim MAE source / plain / guarded (bound) | reward MAE source / plain / guarded "
+    print("| gap | sim MAE source / plain / guarded (bound) | reward MAE source / plain / guarded / guarded relabelled (bound) "
           "| unflagged terminal plain / guarded | actions outside plain / guarded | windows edited | seconds plain / guarded |")
     print("|---|---|---|---|---|---|---|")
     for gap in args.gaps:
         source = load(f"{args.env}-{gap}")
         row = {"env": args.env, "gap": gap, "edit_config": dataclasses.asdict(guarded), "floor": floor,
+               "floor_reward_mae": floor_reward,
                "resolution": prior.target_model.resolution, "source_sha256": source.fingerprint()}
         row["source"] = simulator_measures(domain, source)
         for name, config in (("plain", plain), ("guarded", guarded)):
             edited, report = edit_dataset(prior, source, config)
             row[name] = {**simulator_measures(domain, edited), **validity(args.env, edited, source),
                          "seconds": report["seconds"], "guard": report.get("guard")}
+        row["guarded_relabelled_reward_mae"] = simulator_measures(domain, relabel_rewards(edited, reward_proxy))["reward_mae"]
         row["bound"] = max(row["source"]["mae"], 1.5 * floor)
         s, p, g = row["source"], row["plain"], row["guarded"]
         counts = g["guard"]
         print(f"| {gap} | {s['mae']:.3f} / {p['mae']:.3f} / **{g['mae']:.3f}** ({row['bound']:.3f}) "
               f"| {s['reward_mae']:.3f} / {p['reward_mae']:.3f} / {g['reward_mae']:.3f} "
+              f"/ {row['guarded_relabelled_reward_mae']:.3f} ({s['reward_mae'] + floor_reward:.3f}) "
               f"| {p['unflagged_terminal']} / {g['unflagged_terminal_edited']} "
               f"| {p['actions_outside']} / {g['actions_outside']} "
               f"| {counts['edited']} of {counts['windows']} (outside support {counts['source_outside_support']}, "

@@ -26,6 +26,7 @@ def main() -> None:
     target, source = xted.load_dataset(args.target), xted.load_dataset(args.source)
     prior = xted.train_prior(target, out=f"{args.out}/prior", preset=args.preset, steps=args.prior_steps)
     edited = prior.edit(source, kappa=0.5, seed=0, progress=True)
+    print(edited.metadata["edit"]["report"]["guard"]["verdict"])  # the guard: what it kept, and why
     xted.save_dataset(edited, f"{args.out}/edited.hdf5")  # D4RL layout, for any other learner
 
     report = xted.measure_edit(source, edited, target=target, proxy_steps=args.proxy_steps)

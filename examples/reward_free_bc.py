@@ -26,6 +26,7 @@ def main() -> None:
     prior = xted.train_prior(target, out=f"{args.out}/prior", preset=args.preset, steps=args.prior_steps)
     print(f"prior streams: {', '.join(prior.config.denoiser.streams)}")
     edited = prior.edit(source, kappa=0.5, seed=0, progress=True)
+    print(edited.metadata["edit"]["report"]["guard"]["verdict"])  # the guard: what it kept, and why
 
     kept = xted.measure_edit(source, edited)["content"]["matched"]
     print("content the edit kept (source vs edited episode): " + ", ".join(f"{k} {v:.3f}" for k, v in kept.items()))

@@ -26,6 +26,7 @@ def main() -> None:
         source = source.select_episodes(range(args.source_episodes))
     prior = xted.load_prior("halfcheetah-medium-replay-cpu")
     edited = prior.edit(source, kappa=0.5, seed=0, progress=True)
+    print(edited.metadata["edit"]["report"]["guard"]["verdict"])  # the guard: what it kept, and why
 
     report = xted.measure_edit(source, edited, env="halfcheetah")
     sim = report["simulator"]

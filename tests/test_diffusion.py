@@ -31,7 +31,7 @@ from xted.diffusion import (
 )
 from xted.diffusion.config import LOSS_WEIGHTINGS
 from xted.diffusion.objective import LOSS_WEIGHTS
-from xted.diffusion.objective import init_train_state, loss_fn
+from xted.diffusion.objective import ema_decay, init_train_state, loss_fn
 from xted.errors import InputError
 
 TINY = PriorConfig(
@@ -288,6 +288,23 @@ def test_loss_decreases():
     assert np.isfinite(float(metrics["loss"]))
     assert int(state.step) == 50
     assert held_out_loss(state) < 0.8 * before
+
+
+def test_the_ema_is_warmed_up_so_a_short_run_edits_with_trained_weights():
+    """After 50 steps the EMA holds little of the random initial weights (a fixed 0.999 would keep 95%)."""
+    config = TINY
+    state = init_train_state(config, jax.random.key(0))
+    initial = state.params
+    step = make_train_step(config)
+    for i in range(50):
+        state, _ = step(state, _sine_batch(config.batch_size, config.horizon, seed=i), jax.random.key(1))
+
+    def distance(a, b):
+        return float(sum(jnp.sum((x - y) ** 2) for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b))) ** 0.5)
+
+    assert distance(state.ema_params, state.params) < 0.5 * distance(state.ema_params, initial)
+    assert float(ema_decay(0.999, jnp.asarray(0))) == pytest.approx(0.1)
+    assert float(ema_decay(0.999, jnp.asarray(100_000))) == pytest.approx(0.999)
 
 
 def test_inverse_dynamics_prior_learns_its_inverse_models():

@@ -169,3 +169,21 @@ def test_the_diagnosis_chooses_a_kappa_where_edits_gain_and_none_where_the_sourc
     right = diagnose_edit(prior, source_following(delta), EditConfig(batch_size=BATCH), kappas=(0.2, 0.5),
                           target_model=model)
     assert right["kappa"] is None and "keep the source" in right["verdict"]
+
+
+def test_transition_validity_counts_what_breaks_the_targets_rules():
+    from xted.analysis import transition_validity
+
+    data = build_dataset(lengths=(5, 5), obs_dim=17, act_dim=6, seed=2)
+    next_observations = data.next_observations.copy()
+    next_observations[:, 0], next_observations[:, 1] = 1.2, 0.0  # a healthy walker everywhere...
+    next_observations[2, 0] = 0.3  # ...but one unflagged fall
+    actions = data.actions.copy()
+    actions[3, 1] = 1.5
+    data = dataclasses.replace(data, next_observations=next_observations, actions=actions)
+    report = transition_validity(data, "walker2d")
+    assert report["unflagged_terminal"] == 1 and report["flagged_but_healthy"] == int(data.terminals.sum())
+    assert report["actions_outside"] == 1 and report["states_outside_target_range"] is None
+    unknown = transition_validity(data, None, target=data.select_episodes([0]))
+    assert unknown["unflagged_terminal"] is None and unknown["actions_outside"] >= 0
+    assert unknown["states_outside_target_range"] > 0

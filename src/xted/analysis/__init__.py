@@ -6,7 +6,7 @@ from xted.lazy import lazy_exports
 _EXPORTS = {
     "ProxyConfig": "config", "content_similarity": "content", "mean_spectra": "content", "edit_report": "report",
     "simulator_measures": "report", "DynamicsProxy": "proxy", "RewardProxy": "proxy", "fit_proxy": "proxy",
-    "fit_reward_proxy": "proxy", "relabel_rewards": "proxy",
+    "fit_reward_proxy": "proxy", "relabel_rewards": "proxy", "transition_validity": "validity",
 }
 
 __all__ = sorted(_EXPORTS)

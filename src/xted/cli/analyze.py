@@ -43,6 +43,32 @@ def dynamics(
               f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f} {row['reward']['mae']:9.4f} {row['reward']['bias']:9.4f}")
 
 
+@app.command("validity")
+def validity(
+    datasets: List[str] = typer.Argument(..., help="Dataset paths or shipped names."),
+    env: Optional[str] = typer.Option(None, "--env", help="The target env (halfcheetah, walker2d, hopper): its "
+                                                          "termination rule and action space."),
+    target: Optional[str] = typer.Option(None, "--target", help="Target data: the ranges its actions and states span."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """No simulator needed: per dataset, transitions that step into a state the target env ends an
+    episode on while flagged non-terminal (and the reverse), actions outside the action space, next
+    states outside the range the target data spans."""
+    from xted.analysis import transition_validity
+    from xted.data import load
+
+    reference = None if target is None else load(target)
+    results = [{"path": name, **transition_validity(load(name), env, reference)} for name in datasets]
+    if as_json:
+        print(json.dumps({"env": env, "target": target, "datasets": results}))
+        return
+    columns = ("transitions", "unflagged_terminal", "flagged_but_healthy", "actions_outside",
+               "states_outside_target_range")
+    print(f"{'dataset':40s} " + " ".join(f"{c:>16.16s}" for c in columns) + "  (-: unknown without --env / --target)")
+    for row in results:
+        print(f"{row['path'][-40:]:40s} " + " ".join(f"{'-' if row[c] is None else row[c]:>16}" for c in columns))
+
+
 @app.command("edit-plan")
 def edit_plan(
     sources: List[str] = typer.Argument(..., help="Source datasets (paths or shipped names)."),

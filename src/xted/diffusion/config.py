@@ -127,7 +127,8 @@ class PriorConfig(DenoiserConfig):
     warmup_steps: int = setting(0, "Linear warm-up steps of the learning rate.")
     decay_steps: int | None = setting(None, "Cosine decay of the learning rate to 0.1x at this step (none: constant).")
     grad_clip: float | None = setting(1.0, "Global gradient-norm clip (none: off).")
-    ema_decay: float = setting(0.999, "Decay of the parameters' exponential moving average (what edits use).")
+    ema_decay: float = setting(0.999, "Decay of the parameters' exponential moving average (what edits use), "
+                                      "reached after a warm-up of min(decay, (1 + step) / (10 + step)).")
     condition_dropout: float = setting(0.25, "Probability of dropping the return condition in training (for "
                                              "classifier-free guidance).")
     loss_weighting: str = setting("uniform", "Per-sample loss weight by noise level: " + " or ".join(LOSS_WEIGHTINGS)
