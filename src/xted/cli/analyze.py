@@ -75,8 +75,9 @@ def edit_plan(
     prior: str = typer.Option(..., "--prior", help="Prior folder or a shipped prior's name."),
     target: Optional[str] = typer.Option(None, "--target",
                                          help="Target data to fit the guard's model to, for a prior that holds none."),
-    kappas: str = typer.Option("0.1,0.2,0.3,0.5,0.7", "--kappas", help="Candidate kappas, comma-separated."),
-    episodes: int = typer.Option(40, "--episodes", min=1, help="Source episodes sampled per kappa."),
+    kappas: str = typer.Option("0.1,0.3,0.5,0.7", "--kappas", help="Candidate kappas, comma-separated."),
+    transitions: int = typer.Option(2000, "--transitions", min=1,
+                                    help="Source steps sampled (whole random episodes) and edited at each kappa."),
     seed: int = typer.Option(0, "--seed", min=0),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
@@ -100,15 +101,16 @@ def edit_plan(
         check_dimensions(source, (model.config.state_dim, model.config.action_dim), name, "the prior's training data")
     configs = [EditConfig(kappa=k) for k in candidates]  # each kappa checked before any edit runs
     target_model = None if target is None else fit_target_model(load(target), seed=seed)
-    results = {name: diagnose_edit(model, source, configs[0], candidates, episodes, target_model, seed=seed)
+    results = {name: diagnose_edit(model, source, configs[0], candidates, transitions, target_model, seed=seed)
                for name, source in data.items()}
     if as_json:
         print(json.dumps({"prior": prior, "sources": results}))
         return
     for name, result in results.items():
         first = result["kappas"][0]
-        print(f"{name}: {first['outside_support_share']:.0%} of windows beyond the prior's support; one-step mismatch "
-              f"{first['source_error']:.3f} against the target model's resolution {first['resolution']:.3f}")
+        print(f"{name} ({result['transitions']} steps sampled): {first['outside_support_share']:.0%} of windows beyond "
+              f"the prior's support; one-step mismatch {first['source_error']:.3f} ({first['source_score']:.3f} inside "
+              f"it) against the target model's resolution {first['resolution']:.3f}")
         for row in result["kappas"]:
             print(f"  kappa {row['kappa']:.2f}: score {row['score']:.3f}, {row['edited_share']:.0%} of windows edited")
         chosen = "none (keep the source)" if result["kappa"] is None else f"{result['kappa']:g}"

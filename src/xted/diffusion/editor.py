@@ -387,6 +387,7 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
     source_error = model.errors(source.observations[t], source.actions[t], next_observations[t])
     edited_error = model.errors(edited["observations"], edited["actions"], edited["next_observations"])
     farthest = np.abs(source_states[tiling.window_rows]).max(axis=(1, 2))  # target standard deviations
+    inside = (farthest <= config.support_z)[windows]
     rule = termination or termination_rule(prior.env)
     wrong_flag = np.zeros(len(t), bool) if rule is None else rule(edited["next_observations"]) != source.terminals[t]
     verdict = judge_windows(window_means(source_error, windows, n_windows), window_means(edited_error, windows, n_windows),
@@ -405,6 +406,8 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
         "source_error": float(source_error.mean()),
         "edited_error": float(edited_error.mean()),
         "guarded_error": float(guarded_error.mean()),
+        "source_error_inside_support": float(source_error[inside].mean()) if inside.any() else None,
+        "guarded_error_inside_support": float(guarded_error[inside].mean()) if inside.any() else None,
         "resolution": model.resolution,
     }
     report["verdict"] = verdict_line(verdict.counts, report["source_error"], model.resolution)
