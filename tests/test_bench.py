@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import shutil
 import sys
 
 import numpy as np
@@ -291,6 +292,12 @@ def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
     assert store.read_result(config.store, cell) is not None
     assert main(["bench", *options]) == 0
     assert "0 cells computed" in capsys.readouterr().out
+    kept = tmp_path / "priors" / "halfcheetah" / prior.name  # the exported copy, committed beside the store
+    assert (kept / "prior.json").is_file() and (kept / "target_model.msgpack").is_file()
+    shutil.rmtree(tmp_path / "cache")  # a fresh checkout: a new learner needs the edit, the edit the prior
+    steps = options.index("--steps") + 1
+    assert main(["bench", *options[:steps], "11", *options[steps + 1:]]) == 0
+    assert "2 cells computed" in capsys.readouterr().out  # the edit and the learner: the prior was restored
     (longer,) = plan(dataclasses.replace(config, prior_steps=4)).learners.values()
     assert longer.data_cell.prior_cell.key != prior.key and longer.data_cell.key != cell.data_cell.key
     assert longer.key != cell.key

@@ -6,8 +6,10 @@
 Each non-blank, non-comment line of the queue holds the options of one ``xted bench`` run, most
 informative first. The bench skips every cell already stored under its current key, so the runner can
 be killed at any point and restarted: it loses at most the group of seeds in flight. New result
-files under ``benchmarks/results/bench`` are committed (only they) when a run ends and, while one
-runs, whenever ``--commit-every`` seconds have passed since the last commit.
+files under ``benchmarks/results/bench`` and the priors the bench trained (exported to
+``benchmarks/results/priors``, which a fresh checkout restores instead of training again) are
+committed (only they) when a run ends and, while one runs, whenever ``--commit-every`` seconds have
+passed since the last commit.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 STORE = "benchmarks/results/bench"
+KEPT_PRIORS = "benchmarks/results/priors"  # the bench's exported copies of the priors it trained
 XTED = Path(sys.executable).with_name("xted")
 
 
@@ -31,14 +34,15 @@ def queue_lines(path: Path) -> list[list[str]]:
 
 
 def commit_results(reason: str) -> bool:
-    """Commit new or changed files under the store; True where a commit was made."""
-    status = subprocess.run(["git", "status", "--porcelain", "--", STORE], cwd=ROOT, capture_output=True, text=True)
+    """Commit new or changed files under the store and the kept priors; True where a commit was made."""
+    paths = [path for path in (STORE, KEPT_PRIORS) if (ROOT / path).exists()]
+    status = subprocess.run(["git", "status", "--porcelain", "--", *paths], cwd=ROOT, capture_output=True, text=True)
     if not status.stdout.strip():
         return False
-    subprocess.run(["git", "add", "--", STORE], cwd=ROOT, check=False)
+    subprocess.run(["git", "add", "--", *paths], cwd=ROOT, check=False)
     count = len(status.stdout.strip().splitlines())
-    done = subprocess.run(["git", "commit", "-q", "-m", f"bench results: {count} cells ({reason}; tools/bench_unattended.py)",
-                           "--", STORE], cwd=ROOT, check=False)
+    done = subprocess.run(["git", "commit", "-q", "-m", f"bench results: {count} files ({reason}; tools/bench_unattended.py)",
+                           "--", *paths], cwd=ROOT, check=False)
     return done.returncode == 0
 
 

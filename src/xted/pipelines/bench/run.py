@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from xted.data import Dataset, load, save, split_heldout
+from xted.diffusion.prior import export_prior
 from xted.diffusion.training import train_prior
 from xted.pipelines.bench import cells, claims, store
 from xted.pipelines.bench.config import BenchConfig, RayConfig
@@ -92,18 +94,32 @@ def keep_data(config: BenchConfig, cell: DataCell, data: Dataset, seconds: float
         "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds})
 
 
+def kept_prior(config: BenchConfig, cell: PriorCell) -> Path:
+    """Where the bench keeps an exported copy of a prior it trained, beside its store (committed with
+    the results, so that a fresh checkout restores the prior instead of training it again)."""
+    return Path(config.store).parent / "priors" / cell.env / cell.name
+
+
 def prior_of(grid: Grid, cell: PriorCell, progress: bool = False) -> bool:
     """Train the prior cell's prior into its folder (resuming one cut short) unless the store records
-    it finished and the folder is there; whether it trained now."""
-    folder = Path(cell.folder)
-    if store.read_result(grid.config.store, cell) is not None and (folder / "prior.json").is_file():
-        return False
+    it finished and the folder is there, or its kept copy is (restored into the folder); whether it
+    trained now. A prior trained now is exported to its kept copy."""
+    folder, kept = Path(cell.folder), kept_prior(grid.config, cell)
+    if store.read_result(grid.config.store, cell) is not None:
+        if (folder / "prior.json").is_file():
+            return False
+        if (kept / "prior.json").is_file():
+            shutil.copytree(kept, folder)
+            return False
     training, _ = split_heldout(grid.datasets[cell.source], cell.heldout_episodes)
     began = time.perf_counter()
     train_prior(training, folder, cell.config, cell.steps, progress=progress)
+    seconds = time.perf_counter() - began
+    if not kept.exists():
+        export_prior(folder, kept, provenance={"bench_prior_cell": cell.name, "inputs": cell.inputs})
     store.write_result(grid.config.store, cell, {
         "kind": cell.kind, "env": cell.env, "target": cell.target, "steps": cell.steps,
-        "folder": cell.folder, "seconds": time.perf_counter() - began})
+        "folder": cell.folder, "seconds": seconds})
     return True
 
 
