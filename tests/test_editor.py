@@ -274,6 +274,12 @@ def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states(hol
     np.testing.assert_allclose(out_r[:, 1:-1], np.asarray(predicted_r)[:, 1:], rtol=1e-5, atol=1e-6)
 
 
+def test_a_source_of_only_short_episodes_is_refused(prior):
+    short = build_dataset(lengths=(2, 1, 2), obs_dim=3, act_dim=2)
+    with pytest.raises(InputError, match="every episode of the source is shorter than the prior's windows"):
+        edit_dataset(prior, short, EditConfig(guard=False))
+
+
 def test_dimension_mismatch(prior):
     wrong = build_dataset(lengths=LENGTHS, obs_dim=4, act_dim=2)
     with pytest.raises(InputError, match="4-d observations and 2-d actions; the prior.s training data has 3 and 2"):

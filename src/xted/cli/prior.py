@@ -113,6 +113,9 @@ def edit(
     if dynamics_data is not None:
         report["dynamics_projected_by_a_model_of"] = project_dynamics
     formats.save(edited, out, overwrite=force)
+    if report["passed_through_episodes"]:
+        typer.echo(f"{report['passed_through_episodes']} episodes shorter than the prior's windows "
+                   f"({prior_model.config.horizon - 1} steps) passed through unedited")
     if "guard" in report:
         typer.echo(report["guard"]["verdict"])
     typer.echo(json.dumps({"out": out, **report}))

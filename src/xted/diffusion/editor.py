@@ -301,6 +301,9 @@ def edit_dataset(
         return source.with_metadata(**metadata), report
 
     tiling = tile_episodes(bounds, cfg.horizon)
+    if not len(tiling.window_rows):
+        raise InputError(f"nothing to edit: every episode of the source is shorter than the prior's windows "
+                         f"({cfg.horizon - 1} steps; the longest has {int(np.diff(bounds).max())})")
     next_observations = source.require_next_observations()
     steps, is_next = tiling.sequence_steps, tiling.sequence_is_next
     raw = {
