@@ -2,7 +2,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.xted-installed
 
-.PHONY: demo test install clean bench-grid
+.PHONY: demo test test-fast install clean bench-grid
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -20,6 +20,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks examples
 	$(PY) -m pytest
+
+test-fast: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks examples
+	$(PY) -m pytest -m "not slow" -x -q
 
 bench-grid: $(STAMP)
 	mkdir -p runs

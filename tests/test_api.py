@@ -18,6 +18,7 @@ def test_import_xted_stays_light():
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
 
 
+@pytest.mark.slow
 def test_train_edit_measure_through_the_public_names(tmp_path):
     target = build_dataset(lengths=(9, 10, 12), seed=0)
     source = build_dataset(lengths=(9, 12), seed=1)
@@ -50,6 +51,7 @@ def test_load_prior_takes_a_shipped_prior_by_name():
         xted.load_prior("no-such-prior")
 
 
+@pytest.mark.slow
 def test_train_save_load_a_policy_without_a_simulator(tmp_path):
     target = build_dataset(lengths=(9, 10, 12), seed=0)
     source = build_dataset(lengths=(9, 12), seed=1)

@@ -259,6 +259,7 @@ def test_only_a_clipping_env_s_oracle_key_names_the_state_recovery(tmp_path):
     assert "states_at_velocity_clip" not in oracles["halfcheetah"]
 
 
+@pytest.mark.slow
 def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
     """The shipped prior edits a 200-transition source (kappa 0.05: 10 reverse steps); IQL trains 10 steps."""
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited", "--seeds", "0,1",
@@ -271,6 +272,7 @@ def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
     assert [(row["column"], row["n_seeds"]) for row in rows] == [("Tgt", 2), ("Tgt+Edited", 2)]
 
 
+@pytest.mark.slow
 def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
     """No prior is shipped for halfcheetah-medium: the bench trains one (3 steps here) into its cache,
     records it, edits with it and trains the learner; a rerun computes nothing; more prior steps

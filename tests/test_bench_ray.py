@@ -39,6 +39,7 @@ def stored(folder: Path) -> dict[str, dict]:
     return results
 
 
+@pytest.mark.slow
 def test_ray_and_local_executors_store_the_same_results(tmp_path, local_ray, capsys):
     """Two learner groups (Tgt; Tgt+Oracle, which waits for its oracle task), real IQL, on CPU."""
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Oracle", "--seeds", "0,1",
@@ -83,6 +84,7 @@ def attempts_of(attempts: Path, group_key: str) -> int:
     return int((attempts / group_key).read_text())
 
 
+@pytest.mark.slow
 def test_a_killed_worker_is_retried_and_cells_that_still_fail_are_reported(tmp_path, local_ray):
     attempts = tmp_path / "attempts"
     attempts.mkdir()
@@ -120,6 +122,7 @@ def test_a_killed_worker_is_retried_and_cells_that_still_fail_are_reported(tmp_p
     assert failure.value.computed == [tgt.name] and not (attempts / oracle.key).exists()
 
 
+@pytest.mark.slow
 def test_a_prior_the_bench_trains_is_trained_by_the_driver_before_its_edit_task(tmp_path, local_ray):
     """halfcheetah-medium has no shipped prior: the driver trains it (2 steps) into its cache, and the
     edit task on the worker reads that folder."""

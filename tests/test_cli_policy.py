@@ -23,6 +23,7 @@ def halfcheetah(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_policy_json_and_resume(halfcheetah, tmp_path, capsys, monkeypatch):
     args = ["policy", "--algo", "iql", "--target", str(halfcheetah), "--source", str(halfcheetah),
             "--env", "halfcheetah", "--steps", "20", "--seeds", "0,1", "--eval-episodes", "1",
@@ -54,6 +55,7 @@ def test_policy_json_and_resume(halfcheetah, tmp_path, capsys, monkeypatch):
     assert main(other_args) == 0  # and the new results are resumed from
 
 
+@pytest.mark.slow
 def test_save_policies_and_resume_from_them(halfcheetah, tmp_path, capsys, monkeypatch):
     from xted.api import load_policy
     from xted.data import load
@@ -103,6 +105,7 @@ def _actor_state(policy):
     return TrainState(step=0, apply_fn=module.apply, params=policy.params, tx=None, opt_state=None)
 
 
+@pytest.mark.slow
 def test_train_without_a_simulator(halfcheetah, tmp_path, capsys, monkeypatch):
     from xted.api import load_policy
     from xted.data import load
@@ -124,6 +127,7 @@ def test_train_without_a_simulator(halfcheetah, tmp_path, capsys, monkeypatch):
     assert main([*args, "--gap", "thigh", "--save", str(tmp_path / "r")]) == 2
 
 
+@pytest.mark.slow
 def test_dara_with_nested_overrides(halfcheetah, capsys):
     args = ["policy", "--algo", "dara", "--target", str(halfcheetah), "--source", str(halfcheetah),
             "--env", "halfcheetah", "--steps", "5", "--eval-episodes", "1", "--set", "classifier_steps=10",

@@ -124,6 +124,7 @@ def test_heldout_episodes_are_left_out_of_training(files):
     assert split_heldout(target, 0) == (target, None)
 
 
+@pytest.mark.slow
 def test_demo_on_shipped_data(tmp_path, capsys):
     from xted.pipelines.bench import store
     from xted.pipelines.bench.config import BenchConfig

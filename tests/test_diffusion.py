@@ -240,6 +240,7 @@ def test_loss_weights():
     assert tuple(LOSS_WEIGHTS) == LOSS_WEIGHTINGS  # the names the config accepts are the weightings there are
 
 
+@pytest.mark.slow
 def test_train_kappa_max_draws_only_the_low_noise_levels():
     """Zero-initialised decoders predict no noise, so each sample's loss is its Min-SNR weight times
     the noise's square: the lowest level's weight alone, or the mean weight over every level."""
@@ -271,6 +272,7 @@ def _sine_batch(b: int, h: int, seed: int) -> dict[str, np.ndarray]:
     }
 
 
+@pytest.mark.slow
 def test_loss_decreases():
     config = TINY
     state = init_train_state(config, jax.random.key(0))
@@ -307,6 +309,7 @@ def test_the_ema_is_warmed_up_so_a_short_run_edits_with_trained_weights():
     assert float(ema_decay(0.999, jnp.asarray(100_000))) == pytest.approx(0.999)
 
 
+@pytest.mark.slow
 def test_inverse_dynamics_prior_learns_its_inverse_models():
     config = dataclasses.replace(TINY, architecture="inverse_dynamics")
     state = init_train_state(config, jax.random.key(0))
@@ -329,6 +332,7 @@ def _flat(tree) -> np.ndarray:
     return np.concatenate([np.ravel(x) for x in jax.tree.leaves(tree)])
 
 
+@pytest.mark.slow
 def test_train_prior_resume_and_refuse(tmp_path):
     data = smooth_dataset()
     config = TINY

@@ -221,6 +221,7 @@ def test_edit_dataset_deterministic(prior, source, edited):
     assert not np.allclose(other.observations, again.observations)
 
 
+@pytest.mark.slow
 def test_guidance_zero_is_the_unconditional_prediction(prior):
     """eps(w) = eps_u + w (eps_c - eps_u) is affine in w, so eps(0) = 2 eps(1/2) - eps(1)."""
     assert prior.config.return_condition and EditConfig(guard=False).guidance == 0.0

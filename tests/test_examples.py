@@ -26,6 +26,7 @@ def test_every_example_has_a_test():
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
+@pytest.mark.slow
 def test_simulator_benchmark(monkeypatch, capsys):
     run_example("simulator_benchmark.py", "--policy-steps", "20", "--eval-episodes", "1", "--source-episodes", "1",
                 monkeypatch=monkeypatch)
@@ -42,6 +43,7 @@ def own_data(tmp_path):
     return str(target), str(source)
 
 
+@pytest.mark.slow
 def test_own_data_with_simulator(own_data, tmp_path, monkeypatch, capsys):
     run_example("own_data_with_simulator.py", "--target", own_data[0], "--source", own_data[1], "--env",
                 "halfcheetah", "--out", str(tmp_path / "run"), "--preset", "tiny", "--prior-steps", "3",
@@ -59,6 +61,7 @@ def test_own_data_without_simulator(own_data, tmp_path, monkeypatch, capsys):
     assert xted.load_policy(tmp_path / "run" / "policy").meta["domain"] is None
 
 
+@pytest.mark.slow
 def test_reward_free_bc(tmp_path, monkeypatch, capsys):
     target, source = tmp_path / "robot_target.npz", tmp_path / "robot_source.npz"
     xted.save_dataset(dataclasses.replace(build_dataset(lengths=(9, 10, 12), seed=0), rewards=None), target)
@@ -82,6 +85,7 @@ def test_the_d3rlpy_hand_off_in_the_docs(tmp_path, monkeypatch):
     assert len(scope["mdp"].episodes) == 2
 
 
+@pytest.mark.slow
 def test_the_readme_python_example(tmp_path, monkeypatch):
     """README's Python block as written, with its step counts made tiny (the only changes)."""
     readme = (Path(__file__).parent.parent / "README.md").read_text()

@@ -61,6 +61,7 @@ def tiny_halfcheetah(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_online_training_killed_and_resumed(tmp_path):
     def args(out: Path) -> list[str]:
         return ["online", "train", "--env", "halfcheetah", "--algo", "td3", "--out", str(out), "--steps", "2000",
@@ -73,6 +74,7 @@ def test_online_training_killed_and_resumed(tmp_path):
                        Policy.load(actor_checkpoint(tmp_path / "straight", 2000)).params)
 
 
+@pytest.mark.slow
 def test_prior_training_killed_and_resumed(tmp_path, tiny_files):
     def args(out: Path) -> list[str]:
         return ["train", "--target", str(tiny_files / "target.npz"), "--out", str(out), "--steps", "300",
@@ -88,6 +90,7 @@ def test_prior_training_killed_and_resumed(tmp_path, tiny_files):
     assert_trees_equal(killed.params, straight.params)
 
 
+@pytest.mark.slow
 def test_offline_policy_killed_and_rerun(tmp_path, tiny_halfcheetah):
     def args(out: Path) -> list[str]:
         return ["policy", "--algo", "td3bc", "--target", str(tiny_halfcheetah), "--env", "halfcheetah",

@@ -45,6 +45,7 @@ def test_losses_fall(name):
         assert values[-20:].mean() < values[:20].mean(), key
 
 
+@pytest.mark.slow
 def test_vmapped_seeds_match_single_seed_runs():
     config, data = TINY["td3bc"], synthetic()
     keys = jnp.stack([jax.random.PRNGKey(s) for s in (3, 4)])

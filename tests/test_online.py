@@ -37,6 +37,7 @@ def _params_equal(a, b):
         np.testing.assert_array_equal(x, y)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["sac", "td3"])
 def test_online_run_resumes_to_the_same_policy(tmp_path, algo):
     domain = parse_domain("halfcheetah")
@@ -148,6 +149,7 @@ def test_terminate_above_pitch_ends_training_episodes_where_the_body_tips_and_is
         OnlineRunConfig(terminate_above_pitch=-1.0, **base)
 
 
+@pytest.mark.slow
 def test_init_from_starts_from_the_runs_networks_and_is_part_of_the_run(tmp_path):
     base = dict(algo="td3", checkpoint_every=1000, eval_episodes=1, block=64, td3=TINY_TD3)
     train_online(parse_domain("halfcheetah"), tmp_path / "expert",

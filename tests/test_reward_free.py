@@ -91,6 +91,7 @@ def test_reward_free_from_the_command_line(tmp_path, capsys):
     assert "td3bc needs rewards" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_embedding_states_at_the_cpu_preset(tmp_path):
     """1024-d states (the paper's DecisionNCE embeddings): the cpu preset caps stream widths at 1024,
     the paper's 1x for them, and a prior trains and edits at that size."""

@@ -34,10 +34,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from xted.data import Dataset, check_dimensions
-from xted.data.windows import tile_episodes
+from xted.data.windows import EpisodeTiling, tile_episodes
 from xted.diffusion.config import DenoiserConfig, EditConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse
-from xted.diffusion.guard import TargetModel, judge_windows, verdict_line, window_means
+from xted.diffusion.guard import GuardVerdict, TargetModel, judge_windows, verdict_line, window_means
 from xted.diffusion.prior import Prior
 from xted.diffusion.schedule import (
     Schedule,
@@ -381,9 +381,9 @@ def edit_dataset(
     return result, report
 
 
-def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling: Any, source_states: np.ndarray,
-           edited: dict[str, np.ndarray], config: EditConfig, model: TargetModel, termination: Termination | None
-           ) -> tuple[dict[str, Any], dict[str, np.ndarray], Any]:
+def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling: EpisodeTiling,
+           source_states: np.ndarray, edited: dict[str, np.ndarray], config: EditConfig, model: TargetModel,
+           termination: Termination | None) -> tuple[dict[str, Any], dict[str, np.ndarray], GuardVerdict]:
     """Judge every window (:func:`xted.diffusion.guard.judge_windows`) and clip edited actions into the
     action space; returns the guard's report, the edited transitions and the verdict."""
     t, windows, n_windows = tiling.transition_steps, tiling.transition_window, len(tiling.window_rows)

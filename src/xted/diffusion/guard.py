@@ -21,6 +21,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+import flax.serialization
 import numpy as np
 
 from xted.atomic import atomic_path
@@ -70,8 +71,6 @@ class TargetModel:
         path = Path(folder) / TARGET_MODEL_FILE
         ranges = {name: getattr(self, name).tolist() for name in
                   ("action_low", "action_high", "observation_low", "observation_high")}
-        import flax.serialization
-
         payload = {"dynamics": self.dynamics.to_bytes(), "resolution": self.resolution, **ranges}
         with atomic_path(path) as tmp:
             tmp.write_bytes(flax.serialization.msgpack_serialize(payload))
@@ -84,8 +83,6 @@ class TargetModel:
         path = Path(folder) / TARGET_MODEL_FILE
         if not path.is_file():
             return None
-        import flax.serialization
-
         try:
             data = flax.serialization.msgpack_restore(path.read_bytes())
             ranges = {k: np.asarray(data[k], np.float32) for k in
