@@ -187,3 +187,10 @@ def test_real_process_exit_codes(tmp_path, tiny_dataset):
     ok, bad = run("info", str(tmp_path / "ok.h5"), "--json"), run("info", str(tmp_path / "missing.h5"))
     assert ok.returncode == 0 and json.loads(ok.stdout)["transitions"] == 13
     assert bad.returncode == 2 and bad.stderr.startswith("xted: error: ") and "no such file" in bad.stderr
+
+
+def test_version(capsys):
+    import xted
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"xted {xted.__version__}"

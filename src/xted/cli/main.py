@@ -20,6 +20,20 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+def _print_version(value: bool) -> None:
+    if value:
+        from xted import __version__
+
+        typer.echo(f"xted {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                       help="Print xted's version and exit.")) -> None:
+    """Cross-domain trajectory editing with diffusion models."""
+
+
 # Sub-apps by name, and the modules that register top-level commands on ``app``. A module that
 # fails to import is an error of xted itself, never a command silently missing.
 _SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online",
