@@ -182,3 +182,15 @@ def test_fingerprint_follows_the_arrays_not_the_metadata(tiny_dataset):
         fields = _fields(tiny_dataset)
         fields[name][-1] += 1.0
         assert Dataset(**fields).fingerprint() != tiny_dataset.fingerprint(), name
+
+
+def test_a_dataset_from_observations_and_actions_alone_is_one_reward_free_episode():
+    data = Dataset(observations=np.zeros((5, 3)), actions=np.zeros((5, 2)))
+    assert data.num_episodes == 1 and data.timeouts[-1] and not data.terminals.any() and not data.has_rewards
+    assert repr(data) == "Dataset(5 transitions, 1 episodes, observations 3-d, actions 2-d, reward-free)"
+
+
+def test_next_observations_equal_to_observations_are_refused():
+    observations = np.arange(12.0).reshape(4, 3)
+    with pytest.raises(InputError, match="next_observations equals observations in every row"):
+        Dataset(observations=observations, actions=np.zeros((4, 1)), next_observations=observations.copy())

@@ -31,9 +31,9 @@ class Dataset:
 
     observations: np.ndarray
     actions: np.ndarray
-    rewards: np.ndarray | None
-    terminals: np.ndarray
-    timeouts: np.ndarray
+    rewards: np.ndarray | None = None  # None: reward-free data
+    terminals: np.ndarray | None = None  # None: no step is terminal
+    timeouts: np.ndarray | None = None  # None: only the last step ends an episode (where it is not terminal)
     next_observations: np.ndarray | None = None
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
@@ -46,12 +46,18 @@ class Dataset:
             metadata[REWARD_FREE] = True
         else:
             rewards = _float_array("rewards", self.rewards, ndim=1)
+        terminals = np.zeros(len(observations), bool) if self.terminals is None else as_flags("terminals", self.terminals)
+        if self.timeouts is None:
+            timeouts = np.zeros(len(terminals), bool)
+            timeouts[-1:] = ~terminals[-1:]
+        else:
+            timeouts = as_flags("timeouts", self.timeouts)
         converted = {
             "observations": observations,
             "actions": _float_array("actions", self.actions, ndim=2),
             "rewards": rewards,
-            "terminals": as_flags("terminals", self.terminals),
-            "timeouts": as_flags("timeouts", self.timeouts),
+            "terminals": terminals,
+            "timeouts": timeouts,
             "extras": {str(k): np.asarray(v) for k, v in self.extras.items()},
             "metadata": metadata,
         }
@@ -73,6 +79,9 @@ class Dataset:
                 f"next_observations has shape {self.next_observations.shape}, "
                 f"observations has shape {self.observations.shape}"
             )
+        if self.next_observations is not None and np.array_equal(self.next_observations, self.observations):
+            raise InputError("next_observations equals observations in every row (a logging off-by-one?): each "
+                             "transition's next observation must be the state it stepped into")
         for name, value in self.extras.items():
             if value.ndim == 0 or len(value) != n:
                 raise InputError(f"extras[{name!r}] has shape {value.shape}; its first dimension must be {n}")
@@ -84,6 +93,17 @@ class Dataset:
         if not self.has_rewards and np.any(self.rewards != 0):
             raise InputError(f"metadata[{REWARD_FREE!r}] says the data has no rewards, but rewards has nonzero "
                              f"entries (index {int(np.flatnonzero(self.rewards)[0])})")
+
+    def __repr__(self) -> str:
+        parts = [f"{len(self)} transitions", f"{self.num_episodes} episodes", f"observations {self.observation_dim}-d",
+                 f"actions {self.action_dim}-d", "rewards" if self.has_rewards else "reward-free"]
+        if self.next_observations is not None:
+            parts.append("next_observations")
+        if self.extras:
+            parts.append(f"extras {sorted(self.extras)}")
+        if "env" in self.metadata:
+            parts.append(f"env {self.metadata['env']!r}")
+        return f"Dataset({', '.join(parts)})"
 
     # ----------------------------------------------------------------- shape
     def __len__(self) -> int:
