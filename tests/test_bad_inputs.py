@@ -63,6 +63,13 @@ def _arrays(ws: Path, name: str, **changes) -> str:
     return str(ws / name)
 
 
+def _next_equal_to_observations(ws: Path) -> str:
+    data = build_dataset(lengths=(30, 30))
+    arrays = {k: getattr(data, k) for k in ("observations", "actions", "rewards", "terminals", "timeouts")}
+    np.savez(ws / "same.npz", next_observations=data.observations, **arrays)
+    return str(ws / "same.npz")
+
+
 def _with(array: np.ndarray, index: tuple, value: float) -> np.ndarray:
     array = array.copy()
     array[index] = value
@@ -172,6 +179,8 @@ CASES = [
         ws, "nan.npz", observations=lambda a: _with(a, (7, 1), np.nan))], "observations"),
     Case("inf-reward", "an infinite reward", lambda ws: ["data", "info", _arrays(
         ws, "inf.npz", rewards=lambda a: _with(a, (3,), np.inf))], "rewards"),
+    Case("next-equals-observations", "next_observations equal to observations in every row (a logging off-by-one)",
+         lambda ws: ["data", "info", _next_equal_to_observations(ws)], "next_observations equals observations"),
     Case("length-mismatch", "actions one row shorter than observations", lambda ws: ["data", "info", _arrays(
         ws, "short.npz", actions=lambda a: a[:-1])], "actions"),
     Case("unknown-shipped-name", "a dataset name that is neither a file nor shipped",
