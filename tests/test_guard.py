@@ -137,7 +137,7 @@ def test_windows_beyond_the_support_are_kept_dropped_or_edited_by_option(prior):
 
 
 def test_a_prior_without_a_target_model_asks_for_target_data(prior):
-    source = source_following(np.zeros(3))
+    source = source_following(np.full(3, 0.1))
     with pytest.raises(InputError, match="target data"):
         edit_dataset(prior, source, EditConfig(batch_size=BATCH))
 
@@ -160,7 +160,7 @@ def test_the_fitted_target_model_learns_the_targets_dynamics_and_round_trips(tmp
 def test_the_diagnosis_chooses_a_kappa_where_edits_gain_and_none_where_the_source_is_already_right(prior):
     from xted.diffusion.diagnosis import diagnose_edit
 
-    delta = np.zeros(3)
+    delta = np.full(3, 0.1)
     model = constant_model(delta)
     far = diagnose_edit(prior, source_following(delta, shift=50.0), EditConfig(batch_size=BATCH), kappas=(0.2, 0.5),
                         transitions=15, target_model=model)
