@@ -165,6 +165,7 @@ def test_learner_results_record_the_edited_data(tmp_path, fake):
 AUGMENTED = ("Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER")
 
 
+@pytest.mark.slow
 def test_augmentation_columns_are_made_from_the_target_once_per_target(tmp_path, fake, capsys):
     config = tiny_config(tmp_path, columns=("Tgt", "Tgt+Edited", *AUGMENTED), ser_steps=3)
     planned = plan(config)

@@ -11,6 +11,8 @@ from xted.rl.run_folder import actor_checkpoint, read_evals
 from xted.rl.sac import SACConfig
 from xted.rl.online import OnlineRunConfig, train_online
 
+pytestmark = pytest.mark.slow  # every test reads one online training run, made once (about 17 s)
+
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):

@@ -46,6 +46,7 @@ def test_edit_cli_writes_the_named_format(files, capsys):
     assert not np.array_equal(edited.observations, source.observations)
 
 
+@pytest.mark.slow
 def test_edit_cli_relabels_rewards_with_a_target_reward_proxy(files, capsys):
     edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3", "--no-guard"]
     assert main([*edit, "--out", str(files / "plain.npz")]) == 0

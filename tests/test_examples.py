@@ -52,6 +52,7 @@ def test_own_data_with_simulator(own_data, tmp_path, monkeypatch, capsys):
     assert xted.load_policy(tmp_path / "run" / "policy").scores["final_score"] is not None
 
 
+@pytest.mark.slow
 def test_own_data_without_simulator(own_data, tmp_path, monkeypatch, capsys):
     run_example("own_data_without_simulator.py", "--target", own_data[0], "--source", own_data[1],
                 "--out", str(tmp_path / "run"), "--preset", "tiny", "--prior-steps", "3", "--policy-steps", "20",

@@ -90,6 +90,7 @@ def test_evaluation_of_a_zero_policy_matches_a_manual_rollout():
     assert result["normalized_score"] == pytest.approx(normalized_score("halfcheetah", total))
 
 
+@pytest.mark.slow
 def test_dara_penalises_transitions_the_target_dynamics_would_not_produce():
     rng = np.random.default_rng(0)
 

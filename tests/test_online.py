@@ -58,6 +58,7 @@ def test_online_run_resumes_to_the_same_policy(tmp_path, algo):
         assert np.all(buffer["next_observations"][:998] == buffer["observations"][1:999])
 
 
+@pytest.mark.slow
 def test_block_size_changes_only_when_the_actor_is_refreshed(tmp_path):
     """Before learning starts the actor is never used: any block size gives the same buffer and
     the same first updates' batches, so the same parameters after the first update."""
@@ -106,6 +107,7 @@ def test_cli_trains_and_evaluates(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["domain"] == "halfcheetah"
 
 
+@pytest.mark.slow
 def test_stop_at_return_ends_the_run_at_that_evaluation_and_a_resume_can_go_on(tmp_path):
     domain = parse_domain("halfcheetah")
     base = dict(algo="td3", total_steps=2000, start_steps=500, checkpoint_every=1000, eval_episodes=1, td3=TINY_TD3)
@@ -117,6 +119,7 @@ def test_stop_at_return_ends_the_run_at_that_evaluation_and_a_resume_can_go_on(t
     assert [row["step"] for row in read_evals(tmp_path / "run")] == [1000, 2000]
 
 
+@pytest.mark.slow
 def test_stop_above_pitch_ends_the_run_at_a_flipped_evaluation_and_a_larger_one_goes_on(tmp_path):
     domain = parse_domain("halfcheetah")
     base = dict(algo="td3", total_steps=2000, start_steps=500, checkpoint_every=1000, eval_episodes=1, td3=TINY_TD3)
@@ -129,6 +132,7 @@ def test_stop_above_pitch_ends_the_run_at_a_flipped_evaluation_and_a_larger_one_
         OnlineRunConfig(stop_above_pitch=0.0, **base)
 
 
+@pytest.mark.slow
 def test_terminate_above_pitch_ends_training_episodes_where_the_body_tips_and_is_part_of_the_run(tmp_path):
     domain = parse_domain("halfcheetah")
     base = dict(algo="td3", total_steps=300, start_steps=300, checkpoint_every=300, eval_episodes=1, td3=TINY_TD3)

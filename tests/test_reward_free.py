@@ -55,6 +55,7 @@ def test_a_file_without_rewards_loads_as_reward_free(tmp_path):
     assert main(["data", "info", str(tmp_path / "demos.npz")]) == 0
 
 
+@pytest.mark.slow
 def test_reward_free_prior_edit_and_bc(tmp_path):
     target, source = reward_free(lengths=(9, 10, 12), seed=0), reward_free(lengths=(9, 12), seed=1)
     prior = xted.train_prior(target, out=tmp_path / "prior", steps=3, progress=False, preset="tiny")
