@@ -7,10 +7,11 @@ With the shipped ``ENV-medium-replay-cpu`` prior (its target model shipped besid
 simulator one-step MAE of the source, the plain edit and the guarded edit; their reward MAE; the
 transitions stepping into a state the target ends an episode on while flagged non-terminal; actions
 outside the action space; the guard's counts; the edit's wall time; and the guarded edit's rewards
-relabelled by a reward proxy fitted to the prior's training episodes (``xted edit --relabel-rewards``),
-against the prior's own reward stream. The floor is the plain edit of the two target episodes the
-prior never saw; the bound the guarded edit is held to is the larger of the source's error and 1.5x
-that floor, and its reward error's the source's plus the floor's.
+relabelled by a reward proxy fitted to the prior's training episodes (as ``xted edit --relabel-rewards``
+does, but on the edited transitions only), against the prior's own reward stream. The floor is the
+plain edit of the two target episodes the prior never saw; the bound the guarded edit is held to is
+the larger of the source's error and 1.5x that floor, and its reward error's the source's plus the
+floor's.
 """
 
 from __future__ import annotations
@@ -76,7 +77,10 @@ def main() -> None:
             edited, report = edit_dataset(prior, source, config)
             row[name] = {**simulator_measures(domain, edited), **validity(args.env, edited, source),
                          "seconds": report["seconds"], "guard": report.get("guard")}
-        row["guarded_relabelled_reward_mae"] = simulator_measures(domain, relabel_rewards(edited, reward_proxy))["reward_mae"]
+        relabelled = relabel_rewards(edited, reward_proxy)  # on the edited transitions only, the source's stay
+        changed = np.any(edited.next_observations != source.next_observations, axis=1)
+        relabelled = dataclasses.replace(relabelled, rewards=np.where(changed, relabelled.rewards, edited.rewards))
+        row["guarded_relabelled_reward_mae"] = simulator_measures(domain, relabelled)["reward_mae"]
         row["bound"] = max(row["source"]["mae"], 1.5 * floor)
         s, p, g = row["source"], row["plain"], row["guarded"]
         counts = g["guard"]
