@@ -23,7 +23,8 @@ import numpy as np
 
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error, replayed_rewards
-from xted.pipelines.bench.config import AUGMENT_COLUMNS, BenchConfig
+from xted.pipelines.bench.columns import AUGMENT_COLUMNS
+from xted.pipelines.bench.config import BenchConfig
 from xted.pipelines.bench.grid import plan
 from xted.pipelines.bench.run import data_of
 

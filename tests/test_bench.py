@@ -19,7 +19,8 @@ from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.errors import InputError
 from xted.pipelines.bench import cells, grid, ray_executor, run, store
 from xted.diffusion.config import EditConfig
-from xted.pipelines.bench.config import TABLE_COLUMNS, BenchConfig
+from xted.pipelines.bench.columns import TABLE_COLUMNS
+from xted.pipelines.bench.config import BenchConfig
 from xted.pipelines.bench.edit_quality import edit_label
 from xted.pipelines.bench.grid import first_transitions, plan
 from xted.pipelines.bench.run import CellsFailed, run_bench
@@ -587,7 +588,7 @@ def test_the_committed_lite_table_is_found_under_today_s_cell_keys(env):
     """A change to a config's fields must not orphan the committed results (their keys hash the configs)."""
     from pathlib import Path
 
-    from xted.pipelines.bench.config import SRC, TGT, TGT_EDITED, TGT_ORACLE, TGT_SRC
+    from xted.pipelines.bench.columns import SRC, TGT, TGT_EDITED, TGT_ORACLE, TGT_SRC
     from xted.pipelines.bench.report import task_rows
 
     store = Path(__file__).parent.parent / BenchConfig.store
@@ -604,3 +605,44 @@ def test_the_guarded_columns_edit_with_the_guard_and_are_keyed_apart_from_the_pl
     assert not plain.edit.guard and guarded.edit.guard and guarded.key != plain.key
     assert by_column["Tgt+Guarded DARA"].data_cell.key == guarded.key
     assert "guard" not in plain.inputs["edit"] and "target_model" in guarded.inputs
+
+
+def test_the_filter_columns_wrap_iql_with_each_env_s_keep_share_and_are_keyed_by_their_own_settings(tmp_path):
+    from xted.rl.config import IGDFConfig, OTDFConfig
+
+    columns = ("Tgt+Src", "Tgt+Src DARA", "Tgt+Src IGDF", "Tgt+Src OTDF")
+    config = tiny_config(tmp_path, envs=("halfcheetah", "walker2d"), gaps=("thigh",), columns=columns, seeds=(0,),
+                         algos=("iql", "td3bc"))
+    learners = plan(config).learners.values()
+    by = {(cell.env, cell.column, cell.algo): cell for cell in learners}
+    assert isinstance(by["halfcheetah", "Tgt+Src IGDF", "iql"].config, IGDFConfig)
+    assert by["halfcheetah", "Tgt+Src IGDF", "iql"].config.keep_fraction == 0.25
+    assert by["walker2d", "Tgt+Src IGDF", "iql"].config.keep_fraction == 0.75
+    assert isinstance(by["walker2d", "Tgt+Src OTDF", "iql"].config, OTDFConfig)
+    assert ("halfcheetah", "Tgt+Src IGDF", "td3bc") not in by  # a wrapper of the IQL backbone only
+    # The filters train on what Tgt+Src trains on.
+    assert by["halfcheetah", "Tgt+Src IGDF", "iql"].training == by["halfcheetah", "Tgt+Src", "iql"].training
+
+    def keys(*overrides, algos=("iql", "td3bc")):
+        changed = plan(dataclasses.replace(config, overrides=overrides, algos=algos)).learners.values()
+        return {(cell.env, cell.column, cell.algo): cell.key for cell in changed}
+
+    before = keys()
+    for pair, column in (("igdf.keep_fraction=0.5", "Tgt+Src IGDF"), ("otdf.epsilon=0.1", "Tgt+Src OTDF")):
+        after = keys(pair)
+        assert {name for name in before if before[name] != after[name]} == {
+            (env, column, "iql") for env in ("halfcheetah", "walker2d")}, pair
+    # The backbone's settings reach every IQL column, the wrappers' too.
+    after = keys("expectile=0.8", algos=("iql",))
+    assert after["halfcheetah", "Tgt+Src IGDF", "iql"] != before["halfcheetah", "Tgt+Src IGDF", "iql"]
+
+
+def test_every_column_s_comparisons_name_declared_columns_and_the_report_compares_them():
+    from xted.pipelines.bench.columns import COLUMNS, DATA_KINDS
+    from xted.pipelines.bench.report import IMPROVEMENTS
+
+    for column in COLUMNS.values():
+        assert all(kind in DATA_KINDS for kind in column.data), column
+        assert all(other in COLUMNS and other != column.name for other in column.compared_with), column
+    assert ("Tgt+Guarded", "Tgt+Src IGDF") in IMPROVEMENTS and ("Tgt+Src OTDF", "Tgt+Src") in IMPROVEMENTS
+    assert COLUMNS["Tgt (Edit)"].per_target and not COLUMNS["Tgt"].per_target and not COLUMNS["Src"].per_target

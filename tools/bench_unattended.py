@@ -4,7 +4,8 @@
     make bench-grid          # the same, in the background: setsid nohup ... > runs/bench-grid.log
 
 Each non-blank, non-comment line of the queue holds the options of one ``xted bench`` run, most
-informative first. The bench skips every cell already stored under its current key, so the runner can
+informative first; the queue is read again before each run, so a line added or moved meanwhile is
+taken up without a restart. The bench skips every cell already stored under its current key, so the runner can
 be killed at any point and restarted: it loses at most the group of seeds in flight. New result
 files under ``benchmarks/results/bench`` and the priors the bench trained (exported to
 ``benchmarks/results/priors``, which a fresh checkout restores instead of training again) are
@@ -66,8 +67,15 @@ def main() -> None:
 
     signal.signal(signal.SIGTERM, stop)
     last_commit = time.monotonic()
-    for number, options in enumerate(runs, 1):
-        print(f"[{time.strftime('%H:%M:%S')}] run {number}/{len(runs)}: xted bench {shlex.join(options)}", flush=True)
+    finished: set[str] = set()
+    while True:  # the queue is read again before every run: lines edited meanwhile take effect
+        pending = [options for options in queue_lines(args.queue) if shlex.join(options) not in finished]
+        if not pending:
+            break
+        options = pending[0]
+        number = len(finished) + 1
+        print(f"[{time.strftime('%H:%M:%S')}] run {number} ({len(pending) - 1} more queued): "
+              f"xted bench {shlex.join(options)}", flush=True)
         process = subprocess.Popen([str(XTED), "bench", *options], cwd=ROOT)
         while process.poll() is None:
             time.sleep(10)
@@ -80,6 +88,7 @@ def main() -> None:
                 last_commit = time.monotonic()
         commit_results(f"run {number} ended")
         last_commit = time.monotonic()
+        finished.add(shlex.join(options))
         if stopping:
             print("stopped: finished cells are committed; rerun to go on", flush=True)
             return

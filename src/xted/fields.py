@@ -108,20 +108,21 @@ old name is given its new one (:func:`renamed_fields`)."""
 
 
 def check_fields(config: Any) -> None:
-    """Validate an RL config's fields by what their names say: learning rates > 0; sizes, steps and
-    delays >= 1; discount, tau and expectile in (0, 1]; layer widths positive; every other
-    number >= 0. InputError names the config and the field."""
+    """Validate an RL config's fields by what their names say: learning rates, epsilons, variances and
+    tolerances > 0; sizes, steps, delays, iterations, chunks, dims and sample counts >= 1; discount,
+    tau, expectile and fractions in (0, 1]; layer widths positive; every other number >= 0.
+    InputError names the config and the field."""
     for field in dataclasses.fields(config):
         name, value = field.name, getattr(config, field.name)
         if isinstance(value, bool) or dataclasses.is_dataclass(value) or value is None:
             continue
         if isinstance(value, tuple):
             ok, need = len(value) > 0 and all(isinstance(w, int) and w > 0 for w in value), "positive layer widths"
-        elif name.endswith("lr") or name == "learning_rate":
+        elif name.endswith(("lr", "epsilon", "variance", "tolerance")) or name == "learning_rate":
             ok, need = value > 0, "> 0"
-        elif name.endswith(("batch_size", "batch", "steps", "delay")):
+        elif name.endswith(("batch_size", "batch", "steps", "delay", "iterations", "chunk", "dim", "samples")):
             ok, need = int(value) == value and value >= 1, "an integer >= 1"
-        elif name in ("discount", "tau", "expectile"):
+        elif name in ("discount", "tau", "expectile") or name.endswith("fraction"):
             ok, need = 0 < value <= 1, "in (0, 1]"
         elif isinstance(value, int | float):
             ok, need = value >= 0, ">= 0"

@@ -13,8 +13,9 @@ from xted.cli.options import fields_epilog
 from xted.cli.policy import parse_seeds
 from xted.errors import InputError
 from xted.diffusion.config import EditConfig
-from xted.pipelines.bench.config import COLUMNS, BenchConfig, RayConfig
-from xted.rl.config import OFFLINE_ALGORITHMS, DARAConfig
+from xted.pipelines.bench.columns import COLUMNS, LEARNER_WRAPPERS
+from xted.pipelines.bench.config import BenchConfig, RayConfig
+from xted.rl.config import OFFLINE_ALGORITHMS
 
 DEFAULTS = BenchConfig()
 RAY_DEFAULTS = RayConfig()
@@ -34,9 +35,10 @@ def _joined(values: tuple) -> str:
 FIELDS = "\n\n".join((
     fields_epilog({"--edit fields (the edit of every Tgt+Edited cell; --kappa sets kappa)": EditConfig}, "--edit"),
     fields_epilog({f"--set fields of --algos {name}": kind for name, kind in OFFLINE_ALGORITHMS.items()
-                   if name != "dara"}),
-    fields_epilog({"--set dara.FIELD: DARA's own fields (its backbone is the IQL learner above)": DARAConfig},
-                  prefix="dara.", nested=False),
+                   if name not in LEARNER_WRAPPERS}),
+    *(fields_epilog({f"--set {name}.FIELD: the fields of the columns whose learner is {name} (its backbone is the "
+                     "IQL learner above)": OFFLINE_ALGORITHMS[name]}, prefix=f"{name}.", nested=False)
+      for name in LEARNER_WRAPPERS),
 ))
 
 
@@ -49,7 +51,7 @@ def bench(
     columns: str = typer.Option(_joined(DEFAULTS.columns), "--columns",
                                 help=f"Training data per learner, comma-separated: {', '.join(COLUMNS)}."),
     algos: str = typer.Option(_joined(DEFAULTS.algos), "--algos",
-                              help="iql, td3bc, bc (comma-separated); the DARA column is IQL's."),
+                              help="iql, td3bc, bc (comma-separated); the DARA, IGDF and OTDF columns are IQL's."),
     seeds: str = typer.Option(_joined(DEFAULTS.seeds), "--seeds", help="Seeds, trained together per group."),
     steps: int = typer.Option(DEFAULTS.steps, "--steps", min=1, help="Gradient steps per learner."),
     eval_every: int = typer.Option(DEFAULTS.eval_every, "--eval-every", min=1, help="Steps between evaluations."),
@@ -64,7 +66,8 @@ def bench(
     dynamics_proxy_steps: int = typer.Option(DEFAULTS.dynamics_proxy_steps, "--dynamics-proxy-steps", min=1,
                                              help="Training steps of that dynamics model."),
     overrides: List[str] = typer.Option(
-        [], "--set", help="Algorithm config override FIELD=VALUE, DARA's own as dara.FIELD=VALUE (repeatable)."),
+        [], "--set", help="Algorithm config override FIELD=VALUE; DARA's, IGDF's and OTDF's own as dara.FIELD=VALUE, "
+        "igdf.FIELD=VALUE, otdf.FIELD=VALUE (repeatable)."),
     priors: List[str] = typer.Option(
         [], "--prior", help="Prior folder per env: ENV=PATH or ENV-TARGET=PATH (default: the shipped one, else one the "
         "bench trains; --prior-steps, --prior-preset)."),

@@ -1,4 +1,4 @@
-"""``xted policy``: train offline policies (IQL, TD3+BC, BC, DARA) on target + source data."""
+"""``xted policy``: train offline policies (IQL, TD3+BC, BC, DARA, IGDF, OTDF) on target + source data."""
 
 from __future__ import annotations
 

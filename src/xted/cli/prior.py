@@ -202,7 +202,7 @@ def demo(
 
 
 def _echo_bench_rows(env: str, target: str, gap: str, store: Path) -> None:
-    from xted.pipelines.bench.config import TGT, TGT_EDITED, TGT_ORACLE, TGT_SRC
+    from xted.pipelines.bench.columns import TGT, TGT_EDITED, TGT_ORACLE, TGT_SRC
     from xted.pipelines.bench.report import task_rows
 
     rows = task_rows(env, target, gap, (TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE), str(store))

@@ -92,8 +92,50 @@ class DARAConfig:
         check_fields(self)
 
 
+@dataclasses.dataclass(frozen=True)
+class IGDFConfig:
+    keep_fraction: float = setting(0.5, "Share xi of each batch's source transitions kept, those of highest score "
+                                        "(the authors' README: 0.25 for halfcheetah, 0.75 for walker2d).")
+    weight_scale: float = setting(1.0, "alpha: a kept source transition's Q loss is weighted exp(alpha * score).")
+    encoder_hidden: tuple[int, ...] = setting((256, 256), "Hidden layer widths of both encoders.")
+    embedding_dim: int = setting(64, "Width of the embeddings phi(s, a) and psi(s').")
+    encoder_steps: int = setting(7000, "Adam steps of the contrastive encoders.")
+    encoder_lr: float = setting(3e-4, "Encoder learning rate.")
+    encoder_batch: int = setting(128, "Target transitions per encoder step; as many source next states are negatives.")
+    iql: IQLConfig = setting(IQLConfig(), "The IQL backbone trained on the filtered data (iql.FIELD=VALUE).")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class OTDFConfig:
+    keep_fraction: float = setting(0.8, "Share of each batch's source transitions kept, those of least deviation.")
+    epsilon: float = setting(0.05, "Entropic regularisation of the transport, relative to the mean scaled cost.")
+    sinkhorn_iterations: int = setting(100, "Most Sinkhorn iterations per source chunk.")
+    sinkhorn_tolerance: float = setting(1e-9, "Sinkhorn stops once the marginals err less than this.")
+    chunk: int = setting(4096, "Source transitions per transport problem (memory: chunk x target transitions).")
+    vae_hidden: tuple[int, ...] = setting((750, 750), "Hidden layer widths of the behaviour CVAE's encoder and "
+                                                      "decoder.")
+    vae_steps: int = setting(10_000, "Adam steps of the behaviour CVAE on the target's actions.")
+    vae_lr: float = setting(1e-3, "CVAE learning rate.")
+    vae_batch: int = setting(128, "Target transitions per CVAE step.")
+    kl_weight: float = setting(0.5, "Weight of the CVAE's KL term against its reconstruction MSE.")
+    behaviour_weight: float = setting(0.5, "The actor loss subtracts this x mean log beta(pi(s) | s).")
+    behaviour_samples: int = setting(10, "Latent samples of the log-sum-exp estimate of log beta.")
+    behaviour_variance: float = setting(0.1, "Variance of the Gaussian N(a; dec(s, z), variance I) around each "
+                                             "decoded action.")
+    iql: IQLConfig = setting(IQLConfig(), "The IQL backbone trained on the filtered data (iql.FIELD=VALUE).")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
 # The offline learners by their CLI names (``xted policy --algo``), with their configs.
-OFFLINE_ALGORITHMS: dict[str, type] = {"iql": IQLConfig, "td3bc": TD3BCConfig, "bc": BCConfig, "dara": DARAConfig}
+OFFLINE_ALGORITHMS: dict[str, type] = {"iql": IQLConfig, "td3bc": TD3BCConfig, "bc": BCConfig, "dara": DARAConfig,
+                                       "igdf": IGDFConfig, "otdf": OTDFConfig}
+# Learners that wrap an IQL backbone (their ``iql`` field) and change what it trains on.
+IQL_WRAPPERS = (DARAConfig, IGDFConfig, OTDFConfig)
 
 
 @dataclasses.dataclass(frozen=True)

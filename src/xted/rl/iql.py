@@ -7,12 +7,16 @@ then the target critic moves by ``tau``. The actor is the reference's locomotion
 tanh-squashed mean and a learned state-independent log-std, its learning rate cosine-decayed to zero over
 the run; evaluation acts with the mean. Rewards are used as given unless ``normalize_rewards`` asks for the
 reference's locomotion scaling, ``1000 / (max episode return - min episode return)``.
+
+A batch may carry per-transition weights (:mod:`xted.rl.source_weighting`: IGDF's and OTDF's
+filters): ``sample_weight`` (0 drops a transition from every loss) and ``q_weight`` (the critic's
+weight of each kept one); ``actor_penalty(obs, mean_action)`` adds a per-state term to the actor
+loss (OTDF's behaviour regulariser). Without them every transition weighs 1.
 """
 
 from __future__ import annotations
 
 import math
-from functools import partial
 
 import flax
 import jax
@@ -58,17 +62,28 @@ def _target_q(state: IQLState, batch):
     return q.min(axis=0)
 
 
+def batch_mean(values, batch, weight: str = "sample_weight"):
+    """The mean over the batch's last axis, weighted by ``batch[weight]`` where the batch has weights
+    (normalised by the kept transitions' count, ``sample_weight``'s sum)."""
+    if "sample_weight" not in batch:
+        return values.mean(axis=-1)
+    return (batch[weight] * values).sum(axis=-1) / jnp.maximum(batch["sample_weight"].sum(), 1.0)
+
+
 def value_loss(value_params, state: IQLState, batch, config: IQLConfig):
     v = state.value.apply_fn({"params": value_params}, batch["observations"])
-    loss = expectile_loss(_target_q(state, batch) - v, config.expectile).mean()  # IQL (Kostrikov et al.) Eq. 5
+    loss = batch_mean(expectile_loss(_target_q(state, batch) - v, config.expectile), batch)  # IQL Eq. 5
     return loss, {"value_loss": loss, "v": v.mean()}
 
 
-def actor_loss(actor_params, state: IQLState, batch, config: IQLConfig):
+def actor_loss(actor_params, state: IQLState, batch, config: IQLConfig, actor_penalty=None):
     advantage = _target_q(state, batch) - state.value.apply_fn({"params": state.value.params}, batch["observations"])
     weights = jnp.minimum(jnp.exp(config.temperature * advantage), config.max_weight)
     mean, log_std = state.actor.apply_fn({"params": actor_params}, batch["observations"])
-    loss = -(weights * gaussian_log_prob(mean, log_std, batch["actions"])).mean()  # IQL Eq. 7 (AWR)
+    per_state = -weights * gaussian_log_prob(mean, log_std, batch["actions"])  # IQL Eq. 7 (AWR)
+    if actor_penalty is not None:
+        per_state = per_state + actor_penalty(batch["observations"], mean)
+    loss = batch_mean(per_state, batch)
     return loss, {"actor_loss": loss, "advantage": advantage.mean()}
 
 
@@ -76,21 +91,23 @@ def critic_loss(critic_params, state: IQLState, batch, config: IQLConfig):
     next_v = state.value.apply_fn({"params": state.value.params}, batch["next_observations"])
     target = batch["rewards"] + config.discount * (1.0 - batch["terminals"]) * next_v  # IQL Eq. 6
     q = state.critic.apply_fn({"params": critic_params}, batch["observations"], batch["actions"])
-    loss = ((q - target) ** 2).mean(axis=-1).sum()
+    loss = batch_mean((q - target) ** 2, batch, "q_weight").sum()
     return loss, {"critic_loss": loss, "q": q.mean()}
 
 
-@partial(jax.jit, static_argnames="config")
-def iql_update(state: IQLState, batch, config: IQLConfig):
+def iql_step(state: IQLState, batch, config: IQLConfig, actor_penalty=None):
     """One IQL step: value, then actor (on the new value), then critic, then the target critic."""
     grads, info = jax.grad(value_loss, has_aux=True)(state.value.params, state, batch, config)
     state = state.replace(value=state.value.apply_gradients(grads=grads))
-    grads, actor_info = jax.grad(actor_loss, has_aux=True)(state.actor.params, state, batch, config)
+    grads, actor_info = jax.grad(actor_loss, has_aux=True)(state.actor.params, state, batch, config, actor_penalty)
     state = state.replace(actor=state.actor.apply_gradients(grads=grads))
     grads, critic_info = jax.grad(critic_loss, has_aux=True)(state.critic.params, state, batch, config)
     critic = state.critic.apply_gradients(grads=grads)
     target = optax.incremental_update(critic.params, state.target_critic_params, config.tau)
     return state.replace(critic=critic, target_critic_params=target), {**info, **actor_info, **critic_info}
+
+
+iql_update = jax.jit(iql_step, static_argnames="config")
 
 
 def iql_act(actor: TrainState, obs):

@@ -28,15 +28,17 @@ from xted.envs import Domain, make
 from xted.errors import InputError
 from xted.jsonfiles import read_json
 from xted.resume import check_same_run
-from xted.rl.config import OFFLINE_ALGORITHMS
+from xted.rl import igdf, otdf
+from xted.rl.config import IQL_WRAPPERS, OFFLINE_ALGORITHMS, IGDFConfig, OTDFConfig
 from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
 from xted.rl.evaluation import PolicyFn, evaluate
-from xted.rl.iql import IQLConfig, iql_act, iql_update, init_iql, locomotion_reward_scale
+from xted.rl.iql import IQLConfig, iql_act, iql_step, init_iql, locomotion_reward_scale
 from xted.rl.policy_io import POLICY_FILE, Policy
+from xted.rl.source_weighting import ScoredSource, weigh_batch
 from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
 
-AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig
+AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig | IGDFConfig | OTDFConfig
 Learner = IQLConfig | TD3BCConfig | BCConfig
 ALGORITHMS = OFFLINE_ALGORITHMS
 OBS_STD_EPS = 1e-3
@@ -44,14 +46,14 @@ OBS_STD_EPS = 1e-3
 
 class Algorithm(NamedTuple):
     init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state
-    update: Callable[..., Any]  # (state, batch, config, step) -> (state, info); step: the update's index
+    update: Callable[..., Any]  # (state, batch, config, step[, actor_penalty]) -> (state, info); step: the update's index
     act: Callable[..., Any]  # (actor TrainState, standardised obs) -> actions
     policy_kind: str  # the actor's kind in a saved policy (xted.rl.policy_io)
 
 
 _ALGORITHMS: dict[type, Algorithm] = {
-    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step: iql_update(state, batch, config), iql_act,
-                         "gaussian"),
+    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step, actor_penalty=None: iql_step(
+        state, batch, config, actor_penalty), iql_act, "gaussian"),
     TD3BCConfig: Algorithm(lambda rng, o, a, config, steps: init_td3bc(rng, o, a, config), td3bc_update,
                            deterministic_act, "deterministic"),
     BCConfig: Algorithm(lambda rng, o, a, config, steps: init_bc(rng, o, a, config),
@@ -71,8 +73,8 @@ def algorithm_name(config: AlgoConfig) -> str:
 
 
 def learner_config(config: AlgoConfig) -> Learner:
-    """The config of the networks trained: DARA's IQL backbone, else the config itself."""
-    return config.iql if isinstance(config, DARAConfig) else config
+    """The config of the networks trained: the IQL backbone of DARA, IGDF and OTDF, else the config itself."""
+    return config.iql if isinstance(config, IQL_WRAPPERS) else config
 
 
 # ------------------------------------------------------------------------------------------- data
@@ -133,13 +135,20 @@ def init_seeds(config: Learner, keys, obs_dim: int, action_dim: int, steps: int)
     return jax.vmap(lambda key: init_state(config, key, obs_dim, action_dim, steps))(keys)
 
 
-@partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
-def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0, start=0):
+_STATIC_TRAIN = ("config", "steps", "s4rl_noise", "source_filter")
+PER_SEED_ROWS = ("rewards", "source_score")  # rows that differ between seeds (DARA's rewards, IGDF's scores)
+
+
+@partial(jax.jit, static_argnames=_STATIC_TRAIN)
+def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0, start=0,
+                source_filter: ScoredSource | None = None, behaviour=None):
     """``steps`` updates of one seed on batches drawn from ``data``: (state, key, per-step infos).
 
     ``start`` is the index of the first update. It is passed apart from the state so that under
     ``vmap`` over seeds it stays unbatched and a schedule on it (TD3+BC's delayed actor step)
     remains a ``lax.cond`` instead of becoming a select that computes both branches.
+    ``source_filter`` (IGDF's or OTDF's config) keeps and weights each batch's source transitions
+    by ``data["source_score"]``; ``behaviour``, OTDF's CVAE params, regularises the actor.
     """
     update = _ALGORITHMS[type(config)].update
     size = data["observations"].shape[0]
@@ -151,20 +160,32 @@ def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise:
         batch = {k: v[idx] for k, v in data.items()}
         if s4rl_noise > 0:
             batch = s4rl_augment(batch, noise_key, s4rl_noise)
-        state, info = update(state, batch, config, index)
+        extra = {}
+        if source_filter is not None:
+            batch = weigh_batch(batch, source_filter)
+        if behaviour is not None:
+            latents = jax.random.normal(jax.random.fold_in(noise_key, 1), (config.batch_size, source_filter.behaviour_samples,
+                                                     2 * batch["actions"].shape[-1]))
+            extra["actor_penalty"] = otdf.behaviour_penalty(behaviour, latents, source_filter)
+        state, info = update(state, batch, config, index, **extra)
         return (state, key), info
 
     (state, key), infos = jax.lax.scan(step, (state, key), start + jnp.arange(steps))
     return state, key, infos
 
 
-@partial(jax.jit, static_argnames=("config", "steps", "s4rl_noise"))
-def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0, start=0):
-    """:func:`train_steps` vmapped over stacked seeds; ``data["rewards"]`` is ``[seeds, N]``."""
-    def one(state, key, rewards):
-        return train_steps(config, state, key, {**data, "rewards": rewards}, steps, s4rl_noise, start)
+@partial(jax.jit, static_argnames=_STATIC_TRAIN)
+def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0, start=0,
+                source_filter: ScoredSource | None = None, behaviour=None):
+    """:func:`train_steps` vmapped over stacked seeds; ``data``'s PER_SEED_ROWS (``rewards``, and
+    ``source_score`` where it has them) are ``[seeds, N]``, ``behaviour`` stacked per seed."""
+    own = {k: data[k] for k in PER_SEED_ROWS if k in data}
 
-    return jax.vmap(one)(states, keys, data["rewards"])
+    def one(state, key, rows, seed_behaviour):
+        return train_steps(config, state, key, {**data, **rows}, steps, s4rl_noise, start, source_filter,
+                           seed_behaviour)
+
+    return jax.vmap(one)(states, keys, own, behaviour)
 
 
 @partial(jax.jit, static_argnames="config")
@@ -196,8 +217,9 @@ def _check_inputs(target: Dataset, sources: Sequence[Dataset], domain: Domain | 
     if not isinstance(config, BCConfig):
         for data in (target, *sources):
             data.require_rewards(algorithm_name(config), "train bc, which learns from the actions alone")
-    if isinstance(config, DARAConfig) and not sources:
-        raise InputError("DARA corrects source rewards: give at least one source dataset")
+    if isinstance(config, IQL_WRAPPERS) and not sources:
+        raise InputError(f"{algorithm_name(config)} weighs source data against the target: give at least one "
+                         "source dataset")
     for name, folder in (("results", out_dir), ("policies", save_dir)):
         if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
             raise InputError(f"{folder} is not a folder: cannot keep {name} there")
@@ -300,20 +322,40 @@ def _policy(learner: Learner, actor_params, data: OfflineData, obs_dim: int, act
         "obs_mean": data.obs_mean.tolist(), "obs_std": data.obs_std.tolist()})
 
 
+def _weigh_source(config: AlgoConfig, data: OfflineData, keys) -> tuple[np.ndarray, dict, Any]:
+    """What the learner reads beside the transitions, per seed (one key each): the rewards ``[S, N]``
+    (DARA's corrected on the source's share), IGDF's or OTDF's ``is_source`` and ``source_score``
+    rows, and OTDF's behaviour CVAEs (None for the others)."""
+    seeds, n = len(keys), data.target_size
+    rewards = np.broadcast_to(data.arrays["rewards"], (seeds, len(data.arrays["rewards"])))
+    if not isinstance(config, IQL_WRAPPERS):
+        return rewards, {}, None
+    target = {k: data.arrays[k][:n] for k in CLASSIFIER_INPUTS}
+    source = {k: data.arrays[k][n:] for k in CLASSIFIER_INPUTS}
+    if isinstance(config, DARAConfig):
+        deltas, _ = source_reward_deltas(keys, target, source, config)
+        return np.concatenate([rewards[:, :n], corrected_rewards(rewards[:, n:], deltas, config)], axis=1), {}, None
+    behaviour = None
+    if isinstance(config, IGDFConfig):
+        scores, _ = igdf.source_scores(keys, target, source, config)
+    else:
+        scores = np.broadcast_to(-otdf.source_deviations(target, source, config), (seeds, rewards.shape[1] - n))
+        behaviour, _ = otdf.train_behaviours(keys, target, config)
+    rows = {"is_source": jnp.asarray(np.arange(rewards.shape[1]) >= n, jnp.float32),
+            "source_score": jnp.asarray(np.concatenate([np.zeros((seeds, n)), scores], axis=1), jnp.float32)}
+    return rewards, rows, behaviour
+
+
 def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources: Sequence[Dataset],
                  domain: Domain | None, seeds: list[int], run: dict, progress: bool) -> list[dict]:
     steps, eval_every, s4rl_noise = run["steps"], run["eval_every"], run["s4rl_noise"]
     data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False),
                         next_states=not isinstance(learner, BCConfig))
     keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 3))(jnp.asarray(seeds))
-    init_keys, train_keys, dara_keys = keys[:, 0], keys[:, 1], keys[:, 2]
-    rewards = np.broadcast_to(data.arrays["rewards"], (len(seeds), len(data.arrays["rewards"])))
-    if isinstance(config, DARAConfig):
-        n = data.target_size
-        deltas, _ = source_reward_deltas(dara_keys, {k: data.arrays[k][:n] for k in CLASSIFIER_INPUTS},
-                                         {k: data.arrays[k][n:] for k in CLASSIFIER_INPUTS}, config)
-        rewards = np.concatenate([rewards[:, :n], corrected_rewards(rewards[:, n:], deltas, config)], axis=1)
-    device_data = {**{k: jnp.asarray(v) for k, v in data.arrays.items()}, "rewards": jnp.asarray(rewards)}
+    init_keys, train_keys, source_keys = keys[:, 0], keys[:, 1], keys[:, 2]
+    rewards, rows, behaviour = _weigh_source(config, data, source_keys)
+    source_filter = config if isinstance(config, IGDFConfig | OTDFConfig) else None
+    device_data = {**{k: jnp.asarray(v) for k, v in data.arrays.items()}, "rewards": jnp.asarray(rewards), **rows}
     states = init_seeds(learner, init_keys, target.observation_dim, target.action_dim, steps)
 
     def actor(i: int):
@@ -326,7 +368,7 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
     for end in _segment_ends(steps, eval_every):
         started = time.perf_counter()
         states, train_keys, _ = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
-                                               position)
+                                            position, source_filter, behaviour)
         jax.block_until_ready(states)
         train_seconds += time.perf_counter() - started
         bar.update(end - position)

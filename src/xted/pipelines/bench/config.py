@@ -6,28 +6,7 @@ import dataclasses
 
 from xted.analysis.config import ProxyConfig
 from xted.errors import InputError
-
-# What a learner trains on, besides the target data it is evaluated against.
-SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA = (
-    "Src", "Tgt", "Tgt+Src", "Tgt+Edited", "Tgt+Oracle", "Tgt+Src DARA", "Tgt+Edited DARA")
-TABLE_COLUMNS = (SRC, TGT, TGT_SRC, TGT_EDITED, TGT_ORACLE, TGT_SRC_DARA, TGT_EDITED_DARA)  # Tables 1 and 2
-# Single-domain augmentation (the paper's §5.4): the target plus as many transitions made from it.
-TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER = "Tgt (Edit)", "Tgt (Gen)", "Tgt S4RL", "Tgt SER"
-AUGMENT_COLUMNS = (TGT_SELF_EDIT, TGT_GEN, TGT_S4RL, TGT_SER)
-# Several sources at once (the paper's appendix "multi-source"): the target plus every gap's source of
-# the grid, unedited or edited by the one prior.
-TGT_ALL_SRC, TGT_ALL_EDITED = "Tgt+All Src", "Tgt+All Edited"
-MULTI_SOURCE_COLUMNS = (TGT_ALL_SRC, TGT_ALL_EDITED)
-# The guarded edit (xted's default edit, beyond the paper): Tgt+Edited's source edited with the guard on.
-TGT_GUARDED, TGT_GUARDED_DARA = "Tgt+Guarded", "Tgt+Guarded DARA"
-GUARDED_COLUMNS = (TGT_GUARDED, TGT_GUARDED_DARA)
-COLUMNS = TABLE_COLUMNS + GUARDED_COLUMNS + AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS
-PER_TARGET_COLUMNS = AUGMENT_COLUMNS + MULTI_SOURCE_COLUMNS  # one cell per target, not per gap: rows of their own
-# DARA's reward correction on the source's share: the paper's Table 2
-DARA_COLUMNS = (TGT_SRC_DARA, TGT_EDITED_DARA, TGT_GUARDED_DARA)
-EDITED_COLUMNS = (TGT_EDITED, TGT_EDITED_DARA, *GUARDED_COLUMNS)
-PRIOR_COLUMNS = (*EDITED_COLUMNS, TGT_SELF_EDIT, TGT_GEN, TGT_ALL_EDITED)  # read a prior's output
-DARA_BACKBONE = "iql"  # DARA corrects rewards for an IQL learner: its column exists for the IQL algo only
+from xted.pipelines.bench.columns import COLUMNS, TABLE_COLUMNS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,7 +16,8 @@ class BenchConfig:
     ``edit``: EditConfig overrides (``FIELD=VALUE``) on top of ``kappa``; ``project_dynamics``: each
     edit is projected onto a dynamics model fitted to the row's target data (``xted edit
     --project-dynamics TARGET``, ``dynamics_proxy_steps`` Adam steps); ``overrides``: the algorithm
-    config's (``--set``; ``dara.FIELD=VALUE`` for the DARA column's own fields); ``priors``:
+    config's (``--set``; ``dara.FIELD=VALUE``, ``igdf.FIELD=VALUE`` and ``otdf.FIELD=VALUE`` for the
+    fields of the columns whose learner wraps the IQL backbone); ``priors``:
     ``ENV=PATH`` or ``ENV-TARGET=PATH`` (default: the shipped ``ENV-TARGET-cpu`` prior, where there is
     one, else one the bench trains: ``prior_steps`` of the ``prior_preset`` with ``prior_overrides``,
     PriorConfig's ``FIELD=VALUE`` for every env or ``ENV:FIELD=VALUE`` for one); ``ser_steps``: training

@@ -37,31 +37,10 @@ from xted.diffusion.transitions import TransitionModelConfig
 from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
 from xted.envs.make import observation_velocity_clip
 from xted.errors import InputError
-from xted.pipelines.bench.config import (
-    DARA_BACKBONE,
-    DARA_COLUMNS,
-    GUARDED_COLUMNS,
-    PER_TARGET_COLUMNS,
-    PRIOR_COLUMNS,
-    SRC,
-    TGT,
-    TGT_ALL_EDITED,
-    TGT_ALL_SRC,
-    TGT_EDITED,
-    TGT_EDITED_DARA,
-    TGT_GUARDED,
-    TGT_GUARDED_DARA,
-    TGT_GEN,
-    TGT_ORACLE,
-    TGT_S4RL,
-    TGT_SELF_EDIT,
-    TGT_SER,
-    TGT_SRC,
-    TGT_SRC_DARA,
-    BenchConfig,
-)
+from xted.pipelines.bench.columns import COLUMNS, DATA_KINDS, LEARNER_WRAPPERS, WRAPPED_ALGO, Column
+from xted.pipelines.bench.config import BenchConfig
 from xted.resume import as_json
-from xted.rl.config import DARAConfig
+from xted.rl.config import OFFLINE_ALGORITHMS
 from xted.rl.offline_train import AlgoConfig, algorithm_name, default_config
 
 SHIPPED_PRIOR_SUFFIX = "-cpu"  # the shipped prior of target ENV-LEVEL is ENV-LEVEL-cpu
@@ -191,7 +170,7 @@ class LearnerCell:
 @dataclasses.dataclass(frozen=True)
 class Row:
     """One line of the table: env x target x gap x column x algo, with its cell per seed; ``gap``
-    None for a column of one cell per target (PER_TARGET_COLUMNS)."""
+    None for a column of one cell per target (a column of per-target data kinds)."""
 
     env: str
     target: str
@@ -258,12 +237,18 @@ def edit_config(config: BenchConfig) -> EditConfig:
     return dataclasses.replace(apply_overrides(EditConfig(guard=False), list(config.edit)), kappa=config.kappa)
 
 
-def algo_configs(config: BenchConfig, algo: str) -> tuple[AlgoConfig, DARAConfig | None]:
-    """The learner's config and, for DARA's backbone, DARA's (``--set dara.FIELD=VALUE`` are DARA's own)."""
-    own = [pair for pair in config.overrides if not pair.startswith("dara.")]
-    dara = [pair[len("dara."):] for pair in config.overrides if pair.startswith("dara.")]
-    learner = apply_overrides(default_config(algo), own)
-    return learner, apply_overrides(DARAConfig(iql=learner), dara) if algo == DARA_BACKBONE else None
+def learner_config(config: BenchConfig, algo: str, column: Column, env: str) -> AlgoConfig | None:
+    """The learner of ``column``'s rows of ``algo`` in ``env``: the algorithm's config with ``--set``'s
+    pairs, or the column's wrapper of it as the IQL backbone (its ``env_settings``, then ``--set
+    WRAPPER.FIELD=VALUE``); None where the column has no learner for ``algo``."""
+    prefixes = tuple(f"{name}." for name in LEARNER_WRAPPERS)
+    learner = apply_overrides(default_config(algo), [pair for pair in config.overrides if not pair.startswith(prefixes)])
+    if column.learner is None:
+        return learner
+    if algo != WRAPPED_ALGO:
+        return None
+    own = [pair[len(column.learner) + 1:] for pair in config.overrides if pair.startswith(f"{column.learner}.")]
+    return apply_overrides(OFFLINE_ALGORITHMS[column.learner](iql=learner), [*column.settings_for(env), *own])
 
 
 def resolve_prior(config: BenchConfig, env: str, target: str) -> Path | None:
@@ -345,20 +330,19 @@ def plan(config: BenchConfig) -> Grid:
     # held first transitions; Tgt (Gen) holds nothing, generating from pure noise. From kappa 1 the
     # predicted x_0 is clipped (unless --edit sets a bound): unclipped, the chain's first steps blow up.
     full_chain = dataclasses.replace(edit, kappa=1.0, clip_denoised=edit.clip_denoised or FULL_CHAIN_CLIP)
-    augments = {TGT_SELF_EDIT: full_chain, TGT_GEN: dataclasses.replace(full_chain, hold_first=False)}
-    guarded_edit = dataclasses.replace(edit, guard=True)
+    edits_of_kind = {"edit": edit, "guarded": dataclasses.replace(edit, guard=True), "self-edit": full_chain,
+                     "gen": dataclasses.replace(full_chain, hold_first=False)}
     rows: list[Row] = []
     learners: dict[str, LearnerCell] = {}
 
     def add_rows(env: str, target_level: str, gap: str | None,
-                 trainings: dict[str, tuple[str | DataCell, ...] | None]) -> None:
+                 trainings: dict[Column, tuple[str | DataCell, ...] | None]) -> None:
         """A row per algo and column of ``trainings`` (None: not computable here), a cell per seed."""
         for algo in config.algos:
-            learner, dara = algo_configs(config, algo)
             for column, training in trainings.items():
-                if column in DARA_COLUMNS and dara is None:
+                algo_config = learner_config(config, algo, column, env)
+                if algo_config is None:
                     continue
-                algo_config = dara if column in DARA_COLUMNS else learner
                 cells = []
                 for seed in config.seeds if training is not None else ():
                     inputs = {"kind": "learner", "algo": algorithm_name(algo_config),
@@ -367,40 +351,48 @@ def plan(config: BenchConfig) -> Grid:
                               "eval_every": config.eval_every, "eval_episodes": config.eval_episodes, "seed": seed}
                     key = cell_key(inputs)
                     cells.append(learners.setdefault(key, LearnerCell(
-                        env, None if column == SRC else target_level, None if column == TGT else gap,
-                        column, algo, seed, algo_config, training, inputs, key)))
-                rows.append(Row(env, target_level, gap, column, algo, tuple(cells)))
+                        env, target_level if column.reads_target else None,
+                        None if column.data == ("target",) else gap, column.name, algo, seed, algo_config, training,
+                        inputs, key)))
+                rows.append(Row(env, target_level, gap, column.name, algo, tuple(cells)))
 
-    table = [column for column in config.columns if column not in PER_TARGET_COLUMNS]
-    per_target = [column for column in config.columns if column in PER_TARGET_COLUMNS]
+    columns = [COLUMNS[name] for name in config.columns]
     for env in config.envs:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
-            if set(PRIOR_COLUMNS) & set(config.columns):
+            if any(column.needs_prior for column in columns):
                 prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
-            edits = {gap: data_cell("edit", env, gap, target_level, prior) for gap in config.gaps} if prior else {}
-            guarded = {gap: data_cell("edit", env, gap, target_level, prior, guarded_edit)
-                       for gap in config.gaps} if prior and set(GUARDED_COLUMNS) & set(table) else {}
+            made: dict[tuple[str, str | None], DataCell] = {}
+
+            def made_once(kind: str, gap: str | None) -> DataCell:
+                if (kind, gap) not in made:
+                    cell_kind = kind if kind in ("oracle", "s4rl", "ser") else "edit"
+                    made[kind, gap] = data_cell(cell_kind, env, gap, None if kind == "oracle" else target_level, prior,
+                                                edits_of_kind.get(kind, edit))
+                return made[kind, gap]
+
+            def data_of(kind: str, gap: str | None) -> tuple[str | DataCell, ...] | None:
+                """What the data kind is in this row: datasets by name or data cells; None without a prior."""
+                if DATA_KINDS[kind].needs_prior and prior is None:
+                    return None
+                if kind == "target":
+                    return (target,)
+                if kind == "source":
+                    return (f"{env}-{gap}",)
+                if kind == "sources":
+                    return tuple(f"{env}-{each}" for each in config.gaps)
+                if kind == "edits":
+                    return tuple(made_once("edit", each) for each in config.gaps)
+                return (made_once(kind, None if DATA_KINDS[kind].per_target else gap),)
+
+            def training(column: Column, gap: str | None) -> tuple[str | DataCell, ...] | None:
+                parts = [data_of(kind, gap) for kind in column.data]
+                return None if None in parts else tuple(ref for part in parts for ref in part)
+
             for gap in config.gaps:
-                source = f"{env}-{gap}"
-                trainings: dict[str, tuple[str | DataCell, ...] | None] = {
-                    SRC: (source,), TGT: (target,), TGT_SRC: (target, source), TGT_SRC_DARA: (target, source),
-                    TGT_EDITED: (target, edits[gap]) if edits else None,
-                    TGT_ORACLE: (target, data_cell("oracle", env, gap)) if TGT_ORACLE in config.columns else None,
-                }
-                trainings[TGT_EDITED_DARA] = trainings[TGT_EDITED]
-                trainings[TGT_GUARDED] = trainings[TGT_GUARDED_DARA] = (target, guarded[gap]) if guarded else None
-                add_rows(env, target_level, gap, {column: trainings[column] for column in table})
-            if not per_target:
-                continue
-            made: dict[str, tuple[str | DataCell, ...] | None] = {
-                TGT_ALL_SRC: (target, *(f"{env}-{gap}" for gap in config.gaps)),
-                TGT_ALL_EDITED: (target, *edits.values()) if edits else None,
-                TGT_S4RL: (target, data_cell("s4rl", env, None, target_level)),
-                TGT_SER: (target, data_cell("ser", env, None, target_level)),
-            }
-            for column, augment in augments.items():
-                made[column] = (target, data_cell("edit", env, None, target_level, prior, augment)) if prior else None
-            add_rows(env, target_level, None, {column: made[column] for column in per_target})
+                add_rows(env, target_level, gap, {c: training(c, gap) for c in columns if not c.per_target})
+            per_target = [column for column in columns if column.per_target]
+            if per_target:
+                add_rows(env, target_level, None, {c: training(c, None) for c in per_target})
     return Grid(config, datasets, rows, learners)

@@ -6,7 +6,7 @@ Table 2's sum to 732.0 and 823.2, where it prints 734.2 and 824.2 (``PRINTED_TOT
 
 from __future__ import annotations
 
-from xted.pipelines.bench.config import (
+from xted.pipelines.bench.columns import (
     SRC,
     TGT,
     TGT_ALL_EDITED,

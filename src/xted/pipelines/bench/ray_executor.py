@@ -23,6 +23,7 @@ from tqdm.auto import tqdm
 
 from xted.data import Dataset
 from xted.errors import InputError
+from xted.pipelines.bench.columns import DATA_KINDS
 from xted.pipelines.bench.config import RayConfig
 from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, folder_fingerprint
 from xted.pipelines.bench.run import (
@@ -135,7 +136,7 @@ def _run(ray, grid: Grid, groups: list[list[LearnerCell]], settings: RayConfig, 
         if cell.prior_cell is not None and prior_of(grid, cell.prior_cell, progress):  # here, before its edits
             computed.append(cell.prior_cell.name)
         remote_cell = cell if cell.prior is None else dataclasses.replace(cell, prior=str(Path(cell.prior).resolve()))
-        data_ref, seconds_ref = make.options(name=cell.name, num_gpus=gpus if cell.kind in ("edit", "ser") else 0).remote(
+        data_ref, seconds_ref = make.options(name=cell.name, num_gpus=gpus if DATA_KINDS[cell.kind].accelerator else 0).remote(
             remote_cell, put(cell.source), work.make_data)
         inputs[cell.key] = data_ref
         waiting[data_ref] = ("data", cell, seconds_ref)

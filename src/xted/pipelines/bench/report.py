@@ -12,22 +12,7 @@ import numpy as np
 
 from xted.analysis.stats import improvement_interval, iqm_interval, t_interval
 from xted.pipelines.bench import store
-from xted.pipelines.bench.config import (
-    PER_TARGET_COLUMNS,
-    TGT,
-    TGT_ALL_EDITED,
-    TGT_ALL_SRC,
-    TGT_EDITED,
-    TGT_EDITED_DARA,
-    TGT_GEN,
-    TGT_GUARDED,
-    TGT_GUARDED_DARA,
-    TGT_S4RL,
-    TGT_SELF_EDIT,
-    TGT_SER,
-    TGT_SRC,
-    TGT_SRC_DARA,
-)
+from xted.pipelines.bench.columns import COLUMNS, TGT
 from xted.pipelines.bench.grid import Grid
 from xted.pipelines.bench.paper import paper_cell
 
@@ -76,12 +61,9 @@ def score_summary(scores: Sequence[float]) -> dict:
             "n_seeds": len(scores)}
 
 
-# Aggregates over tasks: each edited column against its baselines, as the paper's claims read (Table 1;
-# Table 2 for DARA; §5.4 for augmentation, against Tgt and the two baselines; the multi-source appendix).
-IMPROVEMENTS = ((TGT_EDITED, TGT), (TGT_EDITED, TGT_SRC), (TGT_EDITED_DARA, TGT_SRC_DARA),
-                (TGT_GUARDED, TGT), (TGT_GUARDED, TGT_SRC), (TGT_GUARDED, TGT_EDITED), (TGT_GUARDED_DARA, TGT_SRC_DARA),
-                (TGT_SELF_EDIT, TGT), (TGT_GEN, TGT), (TGT_SELF_EDIT, TGT_S4RL), (TGT_SELF_EDIT, TGT_SER),
-                (TGT_ALL_EDITED, TGT_ALL_SRC), (TGT_ALL_EDITED, TGT))
+# Aggregates over tasks: each column against those it declares it is compared with (the paper's claims:
+# Table 1; Table 2 for DARA; §5.4 for augmentation; the multi-source appendix; the head-to-head).
+IMPROVEMENTS = tuple((column.name, baseline) for column in COLUMNS.values() for baseline in column.compared_with)
 
 
 def aggregate(rows: list[dict]) -> list[dict]:
@@ -98,7 +80,7 @@ def aggregate(rows: list[dict]) -> list[dict]:
         # Tgt's cell is one per target: the same scores on every gap's row and against a per-target column.
         per_target_tgt = {(env, target, None): found for (env, target, _), found in scores.get(TGT, {}).items()}
         for better, baseline in IMPROVEMENTS:
-            against = per_target_tgt if baseline == TGT and better in PER_TARGET_COLUMNS else scores.get(baseline, {})
+            against = per_target_tgt if baseline == TGT and COLUMNS[better].per_target else scores.get(baseline, {})
             shared = [task for task in scores.get(better, {}) if task in against]
             if shared:
                 out.append({"algo": algo, "measure": "P(improvement)", "column": f"{better} > {baseline}",
@@ -190,7 +172,7 @@ def _totals(rows: list[dict], columns: list[str]) -> list[str]:
 
 def _against_tgt(column: str) -> bool:
     """A column that adds data to Tgt's (a source's, or made from the target): shown with its gain."""
-    return column != TGT and column.startswith(TGT)
+    return COLUMNS[column].adds_to_target
 
 
 def curves_markdown(rows: list[dict]) -> str:
