@@ -8,8 +8,8 @@ $(PY):
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip
 
-$(STAMP): $(PY) pyproject.toml
-	$(PY) -m pip install -e ".[test]"
+$(STAMP): $(PY) pyproject.toml constraints.txt
+	$(PY) -m pip install -c constraints.txt -e ".[test]"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -202,8 +202,8 @@ def test_augmentation_columns_are_made_from_the_target_once_per_target(tmp_path,
 
     options = ["--envs", "halfcheetah", "--gaps", "thigh,gravity", "--columns", ",".join(("Tgt", *AUGMENTED)),
                "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
-               "--ser-steps", "3", "--store", config.store, "--cache", config.cache, "--report"]
-    assert main(["bench", *options]) == 0
+               "--ser-steps", "3", "--store", config.store, "--cache", config.cache]
+    assert main(["bench", "report", *options]) == 0
     table = capsys.readouterr().out
     assert "| env | target | algo | Tgt | Tgt (Edit) | Tgt (Gen) | Tgt S4RL | Tgt SER |" in table
     assert "| halfcheetah | medium-replay | iql | 2.5 ± 0.5 [-3.9, 8.9] | 4.5 ± 0.5 [-1.9, 10.9] (+80.0%) |" in table
@@ -267,9 +267,9 @@ def test_a_real_tiny_grid_edits_once_and_trains(tmp_path, capsys):
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited", "--seeds", "0,1",
                "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
                "--kappa", "0.05", "--store", str(tmp_path / "store"), "--cache", str(tmp_path / "cache")]
-    assert main(["bench", *options]) == 0
+    assert main(["bench", "run", *options]) == 0
     assert "5 cells computed" in capsys.readouterr().out  # 2 x Tgt, 2 x Tgt+Edited, the edit
-    assert main(["bench", *options, "--report", "--json"]) == 0
+    assert main(["bench", "report", *options, "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [(row["column"], row["n_seeds"]) for row in rows] == [("Tgt", 2), ("Tgt+Edited", 2)]
 
@@ -289,18 +289,18 @@ def test_a_target_without_a_prior_gets_one_trained_once(tmp_path, capsys):
     prior = cell.data_cell.prior_cell
     assert prior is not None and cell.data_cell.inputs["prior"] == {"kind": "prior", "key": prior.key}
     assert prior.heldout_episodes == 2 and prior.steps == 3 and cell.data_cell.prior == prior.folder
-    assert main(["bench", *options]) == 0
+    assert main(["bench", "run", *options]) == 0
     assert "3 cells computed" in capsys.readouterr().out  # the prior, the edit, the learner
     record = store.read_result(config.store, prior)
     assert record["steps"] == 3 and (tmp_path / "cache" / "halfcheetah" / prior.name / "prior.json").is_file()
     assert store.read_result(config.store, cell) is not None
-    assert main(["bench", *options]) == 0
+    assert main(["bench", "run", *options]) == 0
     assert "0 cells computed" in capsys.readouterr().out
     kept = tmp_path / "priors" / "halfcheetah" / prior.name  # the exported copy, committed beside the store
     assert (kept / "prior.json").is_file() and (kept / "target_model.msgpack").is_file()
     shutil.rmtree(tmp_path / "cache")  # a fresh checkout: a new learner needs the edit, the edit the prior
     steps = options.index("--steps") + 1
-    assert main(["bench", *options[:steps], "11", *options[steps + 1:]]) == 0
+    assert main(["bench", "run", *options[:steps], "11", *options[steps + 1:]]) == 0
     assert "2 cells computed" in capsys.readouterr().out  # the edit and the learner: the prior was restored
     (longer,) = plan(dataclasses.replace(config, prior_steps=4)).learners.values()
     assert longer.data_cell.prior_cell.key != prior.key and longer.data_cell.key != cell.data_cell.key
@@ -377,7 +377,7 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Src,Tgt+Edited", "--seeds", "0,1",
                "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
                "--store", config.store, "--cache", config.cache]
-    assert main(["bench", *options, "--report", "--json"]) == 0
+    assert main(["bench", "report", *options, "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     rows = report["rows"]
     assert [row["column"] for row in rows] == ["Tgt", "Tgt+Src", "Tgt+Edited"]
@@ -394,7 +394,7 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     assert measures["P(improvement)", "Tgt+Edited > Tgt"]["value"] == 1.0  # 30 beats both seeds
 
     png = tmp_path / "table.png"
-    assert main(["bench", *options, "--report", "--png", str(png)]) == 0
+    assert main(["bench", "report", *options, "--png", str(png)]) == 0
     table = capsys.readouterr().out
     assert "| 15.0 ± 5.0 [-48.5, 78.5] | — | 30.0 ± 0.0 (+100.0%) |" in table
     assert "| iql | P(improvement) | Tgt+Edited > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
@@ -406,16 +406,16 @@ def test_report_sets_the_paper_s_cells_under_each_line_and_its_total_over_the_sa
     write_hand_made_results(config, {"Tgt": [10.0, 20.0]})
     options = ["--envs", "halfcheetah", "--gaps", "thigh,friction", "--columns", "Tgt,Tgt+Edited,Tgt+Oracle",
                "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1",
-               "--transitions", "200", "--store", config.store, "--cache", config.cache, "--report"]
-    assert main(["bench", *options, "--json"]) == 0
+               "--transitions", "200", "--store", config.store, "--cache", config.cache]
+    assert main(["bench", "report", *options, "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [row["paper"] for row in rows[:3]] == [{"mean": 26.2, "std": 3.5}, {"mean": 33.0, "std": 3.0}, None]
-    assert main(["bench", *options, "--paper"]) == 0
+    assert main(["bench", "report", *options, "--paper"]) == 0
     table = capsys.readouterr().out
     assert "| | | | paper | 26.2 ± 3.5 | 33.0 ± 3.0 (+26.0%) | — |" in table  # HC-MR thigh, Table 1
     assert "| | | | paper | 26.2 ± 3.5 | 31.8 ± 3.1 (+21.4%) | — |" in table  # HC-MR friction
     assert "| Total | | | paper | 52.4 | 64.8 (+23.7%) | — |" in table
-    assert main(["bench", *options]) == 0
+    assert main(["bench", "report", *options]) == 0
     assert "paper" not in capsys.readouterr().out
 
 
@@ -445,13 +445,13 @@ def test_report_cost_shares_each_group_s_time_among_its_seeds_and_counts_a_share
     store.write_result(config.store, edit, {"kind": "edit", "seconds": 1800.0})
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited,Tgt+Edited DARA",
                "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
-               "--store", config.store, "--cache", config.cache, "--report"]
-    assert main(["bench", *options, "--json"]) == 0
+               "--store", config.store, "--cache", config.cache]
+    assert main(["bench", "report", *options, "--json"]) == 0
     cost = json.loads(capsys.readouterr().out)["cost"]
     assert [(row["kind"], row["cells"], row["unrecorded"]) for row in cost] == [
         ("learner", 2, 0), ("learner", 2, 0), ("learner", 2, 2), ("edit", 1, 0)]
     assert [row["hours"] for row in cost] == pytest.approx([1.0, 2.0, 0.0, 0.5])  # 2 seeds of a 1 h group: 1 h
-    assert main(["bench", *options, "--cost"]) == 0
+    assert main(["bench", "report", *options, "--cost"]) == 0
     assert "| Total | | 7 | 3.50 | 2 |" in capsys.readouterr().out
 
 
@@ -465,17 +465,17 @@ def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):
         {"step": 10, "normalized_score": 5.0}]})
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt", "--seeds", "0,1", "--steps", "10",
                "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200", "--store", config.store,
-               "--cache", config.cache, "--report"]
-    assert main(["bench", *options, "--json"]) == 0
+               "--cache", config.cache]
+    assert main(["bench", "report", *options, "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)["rows"]
     assert [(p["step"], p["mean"], p["std"], p["n_seeds"]) for p in row["curve"]] == [
         (5, 1.5, 0.5, 2), (10, 4.0, 1.0, 2)]  # step 2: one seed only
-    assert main(["bench", *options, "--curves"]) == 0
+    assert main(["bench", "report", *options, "--curves"]) == 0
     printed = capsys.readouterr().out
     assert "| env | target | gap | column | algo | 5 | 10 |" in printed
     assert "| halfcheetah | medium-replay | thigh | Tgt | iql | 1.5 ± 0.5 | 4.0 ± 1.0 |" in printed
-    assert main(["bench", *options[:-1], "--curves"]) == 2
-    assert "go with --report" in capsys.readouterr().err
+    assert main(["bench", "run", *options, "--curves"]) == 2  # an option of the report only
+    assert "--curves" in capsys.readouterr().err
 
 
 def edit_quality_row(gap, sim_source, sim_edited, proxy_source=1.0, proxy_edited=0.5, matched=0.9, mismatched=0.2):
@@ -494,8 +494,8 @@ def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, caps
         edit_quality_row("thigh", sim_source=1.2, sim_edited=0.6),
         edit_quality_row("gravity", sim_source=0.2, sim_edited=0.7, proxy_edited=0.6, matched=0.5),
         edit_quality_row("friction", sim_source=0.2, sim_edited=0.1)]) + "\n")
-    options = ["bench", "--envs", "halfcheetah", "--gaps", "thigh,gravity", "--columns", "Tgt", "--seeds", "0",
-               "--store", str(tmp_path / "store"), "--report"]
+    options = ["bench", "report", "--envs", "halfcheetah", "--gaps", "thigh,gravity", "--columns", "Tgt", "--seeds", "0",
+               "--store", str(tmp_path / "store")]
     assert main([*options, "--json", "--edit-quality", str(rows)]) == 0
     quality = json.loads(capsys.readouterr().out)["edit_quality"]
     assert [(row["gap"], row["targets"]) for row in quality] == [
@@ -508,7 +508,7 @@ def test_report_checks_edit_quality_rows_against_the_edit_targets(tmp_path, caps
     rows.write_text('{"env": "halfcheetah"}\n')
     assert main([*options, "--edit-quality", str(rows)]) == 2
     assert "quality.jsonl:1: a row of benchmarks/edit_quality.py --out needs gap, kappa" in capsys.readouterr().err
-    assert main([*options[:-1], "--edit-quality", str(rows)]) == 2
+    assert main(["bench", "run", *options[2:], "--edit-quality", str(rows)]) == 2
 
 
 def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaults():
@@ -531,7 +531,7 @@ def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaul
     ("--prior-set", "walker2d:wings=2", "wings"),
 ])
 def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
-    assert main(["bench", option, value, "--store", str(tmp_path / "store"), "--report"]) == 2
+    assert main(["bench", "report", option, value, "--store", str(tmp_path / "store")]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "store").exists()
 
@@ -540,17 +540,18 @@ def test_bad_input_exits_2(tmp_path, capsys, option, value, message):
     (["--address", "head:6379"], "--address: only with --executor ray"),
     (["--retries", "3", "--cpus-per-task", "2"], "--retries, --cpus-per-task: only with --executor ray"),
     (["--executor", "spark"], "--executor 'spark': expected local or ray"),
-    (["--executor", "ray", "--report"], "--report only reads them"),
 ])
 def test_bad_executor_options_exit_2(tmp_path, capsys, options, message):
-    assert main(["bench", *options, "--store", str(tmp_path / "store")]) == 2
+    assert main(["bench", "report", "--executor", "ray", "--store", str(tmp_path / "store")]) == 2
+    assert "--executor" in capsys.readouterr().err  # the report computes nothing: it has no executor
+    assert main(["bench", "run", *options, "--store", str(tmp_path / "store")]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "store").exists()
 
 
 def test_the_ray_executor_without_ray_names_the_fix(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails as where it is not installed
-    assert main(["bench", "--executor", "ray", "--store", str(tmp_path / "store")]) == 2
+    assert main(["bench", "run", "--executor", "ray", "--store", str(tmp_path / "store")]) == 2
     assert "pip install 'xted[ray]'" in capsys.readouterr().err
     assert not (tmp_path / "store").exists()
 
@@ -561,7 +562,7 @@ def test_failed_cells_are_named_and_exit_1(tmp_path, capsys, monkeypatch):
         raise CellsFailed([("tgt-iql-seed0-abc", "its worker died, 5 times")], ["src-iql-seed0-def"])
 
     monkeypatch.setattr(run, "run_bench", failing)
-    assert main(["bench", "--executor", "ray", "--retries", "4", "--store", str(tmp_path / "store")]) == 1
+    assert main(["bench", "run", "--executor", "ray", "--retries", "4", "--store", str(tmp_path / "store")]) == 1
     out, err = capsys.readouterr()
     assert "1 cells computed" in out
     assert "failed: tgt-iql-seed0-abc: its worker died, 5 times" in err and "1 cells failed" in err
@@ -646,3 +647,63 @@ def test_every_column_s_comparisons_name_declared_columns_and_the_report_compare
         assert all(other in COLUMNS and other != column.name for other in column.compared_with), column
     assert ("Tgt+Guarded", "Tgt+Src IGDF") in IMPROVEMENTS and ("Tgt+Src OTDF", "Tgt+Src") in IMPROVEMENTS
     assert COLUMNS["Tgt (Edit)"].per_target and not COLUMNS["Tgt"].per_target and not COLUMNS["Src"].per_target
+
+
+def test_two_processes_needing_one_untrained_prior_train_it_once(tmp_path, monkeypatch):
+    """Two edits of one bench-trained prior, made by two processes at once: the prior is trained by
+    the first to claim it; the second waits for that claim and uses the prior it finished."""
+    import socket
+    import threading
+    from pathlib import Path
+
+    from xted.pipelines.bench import claims
+
+    config = tiny_config(tmp_path, targets=("medium",), gaps=("thigh", "gravity"), columns=("Tgt+Edited",),
+                         seeds=(0,), transitions=2500, prior_steps=3)
+    grid = plan(config)
+    prior = next(iter(grid.learners.values())).data_cell.prior_cell
+    trainings = []
+    training, release = threading.Event(), threading.Event()
+
+    def slow_training(data, folder, prior_config, steps, progress=False):
+        trainings.append(folder)
+        training.set()
+        release.wait(10)  # the other "process" tries meanwhile
+        Path(folder).mkdir(parents=True)
+        (Path(folder) / "prior.json").write_text("{}")
+
+    monkeypatch.setattr(run, "train_prior", slow_training)
+    monkeypatch.setattr(run, "export_prior", lambda folder, kept, provenance: None)
+    first = threading.Thread(target=run.prior_of, args=(grid, prior))
+    first.start()
+    assert training.wait(30)  # the first holds the claim and trains
+    # A second process (another pid on this host) finds the claim: it must wait, then not train.
+    record = json.loads(claims.claim_path(config.store, prior.name).read_text())
+    assert record["host"] == socket.gethostname()
+    waits = []
+    monkeypatch.setattr(claims.time, "sleep", lambda seconds: (waits.append(seconds), release.set(), first.join()))
+    assert run.prior_of(grid, prior) is False
+    assert len(trainings) == 1 and waits and store.read_result(config.store, prior) is not None
+
+
+def test_a_learner_trained_on_data_its_data_cell_no_longer_records_is_flagged_and_recomputed(tmp_path, fake):
+    from xted.pipelines.bench.report import markdown, table_rows
+
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,))
+    run_quietly(config)
+    (cell,) = plan(config).learners.values()
+    assert run.pending(plan(config)) == [] and store.read_result(config.store, cell)["versions"]["jax"]
+    record = store.read_result(config.store, cell.data_cell)
+    store.write_result(config.store, cell.data_cell, {**record, "data_fingerprint": "remade-differently"})
+    (row,) = table_rows(plan(config))
+    assert row["trained_on_other_data"] == 1 and "trained on other data" in markdown([row])
+    assert [[c.key for c in group] for group in run.pending(plan(config))] == [[cell.key]]
+
+
+@pytest.mark.parametrize("old, new", [
+    (["--envs", "walker2d", "--report", "--json"], "`xted bench report --envs walker2d --json`"),
+    (["--envs", "walker2d", "--columns", "Tgt"], "`xted bench run --envs walker2d --columns Tgt`"),
+])
+def test_the_one_command_form_is_refused_with_its_new_spelling(tmp_path, capsys, old, new):
+    assert main(["bench", *old]) == 2
+    assert new in capsys.readouterr().err

@@ -45,7 +45,7 @@ def test_ray_and_local_executors_store_the_same_results(tmp_path, local_ray, cap
     options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Oracle", "--seeds", "0,1",
                "--steps", "200", "--eval-every", "100", "--eval-episodes", "1", "--transitions", "2000"]
     for executor in ("local", "ray"):
-        assert main(["bench", *options, "--executor", executor, "--store", str(tmp_path / executor / "store"),
+        assert main(["bench", "run", *options, "--executor", executor, "--store", str(tmp_path / executor / "store"),
                      "--cache", str(tmp_path / executor / "cache")]) == 0
         assert "5 cells computed" in capsys.readouterr().out  # the oracle and 2 x 2 learner cells
     local, on_ray = stored(tmp_path / "local" / "store"), stored(tmp_path / "ray" / "store")

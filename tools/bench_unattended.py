@@ -56,7 +56,7 @@ def main() -> None:
     runs = queue_lines(args.queue)
     if args.dry_run:
         for options in runs:
-            print(shlex.join([str(XTED), "bench", *options]))
+            print(shlex.join([str(XTED), "bench", "run", *options]))
         return
 
     stopping = False
@@ -75,8 +75,8 @@ def main() -> None:
         options = pending[0]
         number = len(finished) + 1
         print(f"[{time.strftime('%H:%M:%S')}] run {number} ({len(pending) - 1} more queued): "
-              f"xted bench {shlex.join(options)}", flush=True)
-        process = subprocess.Popen([str(XTED), "bench", *options], cwd=ROOT)
+              f"xted bench run {shlex.join(options)}", flush=True)
+        process = subprocess.Popen([str(XTED), "bench", "run", *options], cwd=ROOT)
         while process.poll() is None:
             time.sleep(10)
             if stopping:

@@ -1,16 +1,19 @@
-"""``xted bench``: the paper's Table 1 protocol as a resumable grid of cells, and its report."""
+"""``xted bench run`` and ``xted bench report``: the paper's Table 1 protocol as a resumable grid of cells,
+and its report; both name the grid with the same options."""
 
 from __future__ import annotations
 
+import functools
+import inspect
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import List, Optional
+from typing import Any, List, Optional
 
 import typer
+from typer.core import TyperGroup
 
-from xted.cli.main import app
-from xted.cli.options import fields_epilog
-from xted.cli.policy import parse_seeds
+from xted.cli.options import fields_epilog, parse_seeds
 from xted.errors import InputError
 from xted.diffusion.config import EditConfig
 from xted.pipelines.bench.columns import COLUMNS, LEARNER_WRAPPERS
@@ -42,8 +45,26 @@ FIELDS = "\n\n".join((
 ))
 
 
-@app.command(epilog=FIELDS)
-def bench(
+class _BenchCommands(TyperGroup):
+    """``run`` and ``report``; the one-command form of before (``xted bench [--report] OPTIONS``) is
+    refused with its new spelling."""
+
+    def resolve_command(self, ctx, args):
+        if args and args[0] not in self.commands:
+            rest = " ".join(arg for arg in args if arg != "--report")
+            raise InputError(
+                "xted bench is two commands now: `xted bench run` computes the grid's missing cells, `xted bench "
+                f"report` prints its stored results (was `xted bench --report`): `xted bench "
+                f"{'report' if '--report' in args else 'run'} {rest}`")
+        return super().resolve_command(ctx, args)
+
+
+app = typer.Typer(cls=_BenchCommands, no_args_is_help=True, context_settings={"ignore_unknown_options": True},
+                  help="The paper's Table 1 protocol as a resumable grid of cells (env x target x gap x column x algo "
+                  "x seed): `run` computes it, `report` reads it; both take the same grid options.")
+
+
+def grid_config(
     envs: str = typer.Option(_joined(DEFAULTS.envs), "--envs", help="Envs, comma-separated."),
     targets: str = typer.Option(_joined(DEFAULTS.targets), "--targets",
                                 help="Target levels (shipped ENV-LEVEL data), comma-separated."),
@@ -84,19 +105,41 @@ def bench(
                                               help="Use only the first N transitions of every dataset."),
     store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
     cache: Path = typer.Option(Path(DEFAULTS.cache), "--cache", help="Folder of made datasets (edits, oracles)."),
-    report: bool = typer.Option(False, "--report", help="Print the table from stored results; compute nothing."),
-    as_json: bool = typer.Option(
-        False, "--json", help="With --report: print {\"rows\": [...], \"aggregate\": [...], \"cost\": [...]}."),
-    png: Optional[Path] = typer.Option(None, "--png", help="With --report: also draw the table as grouped bars."),
-    edit_quality: List[Path] = typer.Option(
-        [], "--edit-quality", help="With --report: also the edit-quality table of these JSON-lines files "
-        "(benchmarks/edit_quality.py --out), rows of the grid's envs and gaps, checked against the edit targets."),
-    curves: bool = typer.Option(False, "--curves", help="With --report: also print each row's learning curve "
-                                "(mean ± std over seeds at every evaluation)."),
-    paper: bool = typer.Option(False, "--paper", help="With --report: under each line of the table the paper's cells "
-                               "(its Tables 1 and 2, IQL), and the paper's totals over the same rows."),
-    cost: bool = typer.Option(False, "--cost", help="With --report: also print the wall-clock hours each group of "
-                              "seeds, edit, oracle and bench-trained prior took (the JSON always has them)."),
+) -> BenchConfig:
+    """The grid both commands name, from its options (checked by BenchConfig)."""
+    return BenchConfig(
+        envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
+        columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
+        steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
+        project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
+        priors=tuple(priors), prior_steps=prior_steps, prior_preset=prior_preset,
+        prior_overrides=tuple(prior_overrides), ser_steps=ser_steps, transitions=transitions, store=str(store),
+        cache=str(cache))
+
+
+GRID_PARAMETERS = list(inspect.signature(grid_config, eval_str=True).parameters.values())
+
+
+def with_grid(command: Callable) -> Callable:
+    """Give ``command`` the grid's options (:func:`grid_config`'s); it receives them as ``config``."""
+    own = [p for p in inspect.signature(command, eval_str=True).parameters.values() if p.name != "config"]
+
+    @functools.wraps(command)
+    def wrapper(**kwargs: Any) -> Any:
+        grid = {p.name: kwargs.pop(p.name) for p in GRID_PARAMETERS}
+        return command(config=grid_config(**grid), **kwargs)
+
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    wrapper.__signature__ = inspect.Signature([p.replace(kind=keyword) for p in (*GRID_PARAMETERS, *own)])
+    wrapper.__annotations__ = {p.name: p.annotation for p in wrapper.__signature__.parameters.values()}
+    del wrapper.__wrapped__
+    return wrapper
+
+
+@app.command("run", epilog=FIELDS)
+@with_grid
+def run_grid(
+    config: BenchConfig,
     executor: str = typer.Option("local", "--executor",
                                  help="local: one group of seeds after another here; ray: as Ray tasks."),
     address: Optional[str] = typer.Option(
@@ -111,33 +154,42 @@ def bench(
         None, "--gpus-per-task", min=0.0, max=64.0,
         help="With --executor ray: GPUs each edit and learner task reserves (default 1 where the cluster has GPUs)."),
 ) -> None:
-    """Run the Table 1 grid (env x target x gap x column x algo x seed), skipping every cell whose
-    result is stored under its current key; or, with --report, show the stored results of this grid."""
-    config = BenchConfig(
-        envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
-        columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
-        steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
-        project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
-        priors=tuple(priors), prior_steps=prior_steps, prior_preset=prior_preset,
-        prior_overrides=tuple(prior_overrides), ser_steps=ser_steps, transitions=transitions, store=str(store),
-        cache=str(cache))
-    if (as_json or png is not None or curves or cost or paper or edit_quality) and not report:
-        raise InputError("--json, --png, --curves, --cost, --paper and --edit-quality go with --report")
-    ray = _ray_config(executor, report, address=address, retries=retries, cpus_per_task=cpus_per_task,
-                      gpus_per_task=gpus_per_task)
-    if not report:
-        from xted.pipelines.bench.run import CellsFailed, run_bench
+    """Compute every cell of the grid (env x target x gap x column x algo x seed) whose result is not
+    stored under its current key, or was trained on data its data cell no longer records."""
+    from xted.pipelines.bench.run import CellsFailed, run_bench
 
-        try:
-            computed = run_bench(config, echo=typer.echo, ray=ray)
-        except CellsFailed as err:
-            typer.echo(f"bench: {len(err.computed)} cells computed; results in {store}")
-            for name, why in err.failed:
-                typer.echo(f"bench: failed: {name}: {why}", err=True)
-            typer.echo(f"xted: error: {len(err.failed)} cells failed (rerun to retry them)", err=True)
-            raise typer.Exit(1) from None
-        typer.echo(f"bench: {len(computed)} cells computed; results in {store}")
-        return
+    ray = _ray_config(executor, address=address, retries=retries, cpus_per_task=cpus_per_task,
+                      gpus_per_task=gpus_per_task)
+    try:
+        computed = run_bench(config, echo=typer.echo, ray=ray)
+    except CellsFailed as err:
+        typer.echo(f"bench: {len(err.computed)} cells computed; results in {config.store}")
+        for name, why in err.failed:
+            typer.echo(f"bench: failed: {name}: {why}", err=True)
+        typer.echo(f"xted: error: {len(err.failed)} cells failed (rerun to retry them)", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(f"bench: {len(computed)} cells computed; results in {config.store}")
+
+
+@app.command("report", epilog=FIELDS)
+@with_grid
+def report_grid(
+    config: BenchConfig,
+    as_json: bool = typer.Option(
+        False, "--json", help="Print {\"rows\": [...], \"aggregate\": [...], \"cost\": [...]}."),
+    png: Optional[Path] = typer.Option(None, "--png", help="Also draw the table as grouped bars."),
+    edit_quality: List[Path] = typer.Option(
+        [], "--edit-quality", help="Also the edit-quality table of these JSON-lines files "
+        "(benchmarks/edit_quality.py --out), rows of the grid's envs and gaps, checked against the edit targets."),
+    curves: bool = typer.Option(False, "--curves", help="Also print each row's learning curve "
+                                "(mean ± std over seeds at every evaluation)."),
+    paper: bool = typer.Option(False, "--paper", help="Under each line of the table the paper's cells "
+                               "(its Tables 1 and 2, IQL), and the paper's totals over the same rows."),
+    cost: bool = typer.Option(False, "--cost", help="Also print the wall-clock hours each group of "
+                              "seeds, edit, oracle and bench-trained prior took (the JSON always has them)."),
+) -> None:
+    """Print the grid's table from the stored results (mean ± std [95% interval] per row, the gain
+    against Tgt, the aggregates over tasks); computes nothing."""
     from xted.pipelines.bench.edit_quality import checked
     from xted.pipelines.bench.edit_quality import markdown as edit_quality_markdown
     from xted.pipelines.bench.edit_quality import read_rows as edit_quality_rows
@@ -169,7 +221,7 @@ def bench(
         save_png(table_figure(rows), png)
 
 
-def _ray_config(executor: str, report: bool, **given) -> RayConfig | None:
+def _ray_config(executor: str, **given) -> RayConfig | None:
     """The Ray settings for ``--executor ray``; None for the local executor, which takes none of them."""
     if executor not in ("local", "ray"):
         raise InputError(f"--executor {executor!r}: expected local or ray")
@@ -179,6 +231,4 @@ def _ray_config(executor: str, report: bool, **given) -> RayConfig | None:
         if options:
             raise InputError(f"{flags}: only with --executor ray")
         return None
-    if report:
-        raise InputError("--executor ray computes cells; --report only reads them")
     return RayConfig(**options)

@@ -37,8 +37,8 @@ def _root(version: bool = typer.Option(False, "--version", callback=_print_versi
 # Sub-apps by name, and the modules that register top-level commands on ``app``. A module that
 # fails to import is an error of xted itself, never a command silently missing.
 _SUBAPPS = {"data": "xted.cli.data", "analyze": "xted.cli.analyze", "online": "xted.cli.online",
-            "plot": "xted.cli.plot"}
-_COMMAND_MODULES = ["xted.cli.prior", "xted.cli.policy", "xted.cli.render", "xted.cli.bench"]
+            "plot": "xted.cli.plot", "bench": "xted.cli.bench"}
+_COMMAND_MODULES = ["xted.cli.prior", "xted.cli.policy", "xted.cli.render"]
 
 
 def _register() -> None:

@@ -19,6 +19,7 @@ from typing import Any, Optional
 
 import typer
 
+from xted.errors import InputError
 from xted.fields import field_help
 
 PLAIN_TYPES = (bool, int, float, str)
@@ -121,3 +122,14 @@ def _field_lines(config: Any, option: str, prefix: str, nested: bool) -> list[st
         else:
             lines.append(f"{option} {prefix}{field.name}={_text(value)}  {field.metadata.get('help', '')}")
     return lines
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``--seeds 0,1,2``: distinct non-negative integers."""
+    try:
+        seeds = [int(part) for part in text.split(",")]
+    except ValueError:
+        seeds = []
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        raise InputError(f"--seeds {text!r}: expected distinct non-negative integers such as 0,1,2")
+    return seeds

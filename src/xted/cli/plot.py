@@ -121,12 +121,12 @@ def curves(
 
 @app.command("table")
 def table(
-    results: Path = typer.Argument(..., help="What xted bench --report --json printed ({\"rows\": [...]})."),
+    results: Path = typer.Argument(..., help="What xted bench report --json printed ({\"rows\": [...]})."),
     out: Path = typer.Option(..., "--out", help=OUT_HELP),
 ) -> None:
     """The paper's Table 1 as grouped bars: per env, target and algorithm, a group per gap and a
     bar per column (Src, Tgt, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA, Tgt+Edited DARA): mean and std over
-    seeds, each seed a dot. ``xted bench --report --png FILE`` draws the same figure."""
+    seeds, each seed a dot. ``xted bench report --png FILE`` draws the same figure."""
     from xted.viz.plots import check_png_path, save_png, table_figure
     from xted.viz.results import read_bench_rows
 

@@ -10,21 +10,11 @@ import numpy as np
 import typer
 
 from xted.cli.main import app
-from xted.cli.options import fields_epilog
+from xted.cli.options import fields_epilog, parse_seeds
 from xted.fields import apply_overrides
 from xted.errors import InputError
 from xted.resume import discard_run
 from xted.rl.config import OFFLINE_ALGORITHMS
-
-
-def parse_seeds(text: str) -> list[int]:
-    try:
-        seeds = [int(part) for part in text.split(",")]
-    except ValueError:
-        seeds = []
-    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
-        raise InputError(f"--seeds {text!r}: expected distinct non-negative integers such as 0,1,2")
-    return seeds
 
 
 ALGORITHM_FIELDS = fields_epilog({f"--set fields of --algo {name}": kind for name, kind in OFFLINE_ALGORITHMS.items()})

@@ -209,10 +209,10 @@ def _echo_bench_rows(env: str, target: str, gap: str, store: Path) -> None:
     found = [row for row in rows if row["n_seeds"]]
     if not found:
         typer.echo(f"lite table: no results for {env}-{target} x {gap} in {store} "
-                   f"(`xted bench --envs {env} --gaps {gap}` computes them)")
+                   f"(`xted bench run --envs {env} --gaps {gap}` computes them)")
         return
     typer.echo(f"lite table, {env}-{target} with the {gap} source (IQL, normalised score, mean ± std over seeds; "
-               f"committed in {store}, `xted bench --report`):")
+               f"committed in {store}, `xted bench report`):")
     for row in rows:
         shown = "not computed" if not row["n_seeds"] else f"{row['mean']:.1f} ± {row['std']:.1f} ({row['n_seeds']} seeds)"
         typer.echo(f"  {row['column']:12s} {shown}")

@@ -207,7 +207,7 @@ _COLUMN_COLORS = {"Src": "tab:gray", "Tgt": "tab:purple", "Tgt+Src": "tab:olive"
 def table_figure(rows: list[dict]) -> Figure:
     """The paper's Table 1 as grouped bars: a panel per env, target and algorithm, a group per gap,
     a bar per column (mean and std over seeds, each seed a dot where the rows list ``scores``).
-    ``rows``: those of ``xted bench --report --json``; a row without a mean is left out."""
+    ``rows``: those of ``xted bench report --json``; a row without a mean is left out."""
     rows = [{**row, "gap": row["gap"] or "per target"} for row in rows if row.get("mean") is not None]
     if not rows:
         raise InputError("no row holds a score (every cell is missing)")

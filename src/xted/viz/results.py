@@ -1,7 +1,7 @@
 """The result files ``xted plot`` reads, checked: rows of the benchmarks and training runs.
 
 - ``benchmarks/edit_quality.py --out FILE``: one JSON object per line, per gap and kappa;
-- ``xted bench --report --json``: ``{"rows": [...]}``, one row per env, target, gap, column and algo;
+- ``xted bench report --json``: ``{"rows": [...]}``, one row per env, target, gap, column and algo;
 - a training run, by the files in its folder: ``log.csv`` (a prior: ``xted train``),
   ``evals.csv`` (an online run: ``xted online train``) or ``seed_*.json`` (offline policies:
   ``xted policy --out``); a copy of a ``log.csv`` or ``evals.csv`` is recognised by its columns.
@@ -30,9 +30,9 @@ def read_edit_quality(path: str | Path) -> list[dict]:
 
 
 def read_bench_rows(path: str | Path) -> list[dict]:
-    """The rows of a file ``xted bench --report --json`` wrote."""
+    """The rows of a file ``xted bench report --json`` wrote."""
     path = Path(path)
-    what = "xted bench --report --json"
+    what = "xted bench report --json"
     if not path.is_file():
         raise InputError(f"{path}: no such file (expected {what})")
     try:

@@ -88,7 +88,7 @@ class BenchConfig:
 
 @dataclasses.dataclass(frozen=True)
 class RayConfig:
-    """Running the grid as Ray tasks (``xted bench --executor ray``).
+    """Running the grid as Ray tasks (``xted bench run --executor ray``).
 
     ``address``: a running cluster's head (``HOST:6379``, or ``auto``); None starts a local Ray
     instance sized to this machine. ``retries``: how many times a task whose worker died (killed,

@@ -1,4 +1,4 @@
-"""The edit-quality table of ``xted bench --report --edit-quality``: rows written by
+"""The edit-quality table of ``xted bench report --edit-quality``: rows written by
 ``benchmarks/edit_quality.py --out`` (one JSON line per env x gap x kappa), each checked against the
 bench's edit targets."""
 

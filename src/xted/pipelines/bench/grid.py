@@ -362,7 +362,14 @@ def plan(config: BenchConfig) -> Grid:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
             if any(column.needs_prior for column in columns):
-                prior = resolve_prior(config, env, target_level) or prior_cell(env, target_level)
+                prior = resolve_prior(config, env, target_level)
+                if prior is not None and config.prior_overrides_for(env):
+                    raise InputError(
+                        f"--prior-set {' '.join(config.prior_overrides_for(env))}: {target} edits with the prior {prior.name} "
+                        "(shipped or given), which the bench does not train, and --prior-set changes only the priors it "
+                        f"trains; leave {target_level} out of --targets, or train that prior (xted train --set) and "
+                        "pass it with --prior")
+                prior = prior or prior_cell(env, target_level)
             made: dict[tuple[str, str | None], DataCell] = {}
 
             def made_once(kind: str, gap: str | None) -> DataCell:

@@ -1,4 +1,4 @@
-"""``xted bench --executor ray``: the grid's work as Ray tasks.
+"""``xted bench run --executor ray``: the grid's work as Ray tasks.
 
 A task is what the local executor computes in one go: one data cell (an edit or an oracle
 relabelling), or one group of learner cells that differ only by seed, trained together as locally

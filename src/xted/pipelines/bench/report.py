@@ -27,8 +27,11 @@ def table_rows(grid: Grid) -> list[dict]:
         results = [store.read_result(grid.config.store, cell) for cell in row.cells]
         found = [result for result in results if result is not None]
         scores = [result["final_score"] for result in found]
+        other_data = sum(store.trained_on_other_data(grid.config.store, cell, result)
+                         for cell, result in zip(row.cells, results) if result is not None)
         rows.append({"env": row.env, "target": row.target, "gap": row.gap, "column": row.column, "algo": row.algo,
                      **score_summary(scores), "scores": scores, "curve": learning_curve(found),
+                     "trained_on_other_data": other_data,
                      "paper": paper_cell(row.env, row.target, row.gap, row.column, row.algo)})
     return rows
 
@@ -156,6 +159,8 @@ def _shown(cell: dict | None, tgt: dict | None, column: str) -> str:
     shown = f"{cell['mean']:.1f} ± {cell['std']:.1f}"
     if cell.get("ci95") is not None:
         shown += f" [{cell['ci95'][0]:.1f}, {cell['ci95'][1]:.1f}]"
+    if cell.get("trained_on_other_data"):
+        shown += f" ({cell['trained_on_other_data']} seeds trained on other data: rerun)"
     return shown + (gain(cell["mean"], (tgt or {}).get("mean")) if _against_tgt(column) else "")
 
 

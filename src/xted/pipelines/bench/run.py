@@ -12,7 +12,9 @@ second process on the same store skips the groups the first is training and wait
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
+import importlib.metadata
 import shutil
 import time
 from collections.abc import Callable, Sequence
@@ -48,11 +50,21 @@ class CellsFailed(RuntimeError):
         self.failed, self.computed = failed, computed
 
 
+COMPUTING_LIBRARIES = ("xted", "jax", "jaxlib", "flax", "optax", "numpy", "mujoco", "gymnasium")
+
+
+@functools.cache
+def library_versions() -> dict[str, str]:
+    """The versions of the libraries that compute a cell, recorded in every cell's result."""
+    return {name: importlib.metadata.version(name) for name in COMPUTING_LIBRARIES}
+
+
 def pending(grid: Grid) -> list[list[LearnerCell]]:
-    """Learner cells without a result, in groups that differ only by seed (grid order)."""
+    """Learner cells without a current result (none, or one trained on other data than its data cells
+    record), in groups that differ only by seed (grid order)."""
     groups: dict[tuple, list[LearnerCell]] = {}
     for cell in grid.learners.values():
-        if store.read_result(grid.config.store, cell) is None:
+        if store.current_result(grid.config.store, cell) is None:
             groups.setdefault(cell.group, []).append(cell)
     return list(groups.values())
 
@@ -91,7 +103,8 @@ def keep_data(config: BenchConfig, cell: DataCell, data: Dataset, seconds: float
     save(data, path)
     store.write_result(config.store, cell, {
         "kind": cell.kind, "env": cell.env, "target": cell.target, "gap": cell.gap,
-        "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds})
+        "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds,
+        "versions": library_versions()})
 
 
 def kept_prior(config: BenchConfig, cell: PriorCell) -> Path:
@@ -103,7 +116,17 @@ def kept_prior(config: BenchConfig, cell: PriorCell) -> Path:
 def prior_of(grid: Grid, cell: PriorCell, progress: bool = False) -> bool:
     """Train the prior cell's prior into its folder (resuming one cut short) unless the store records
     it finished and the folder is there, or its kept copy is (restored into the folder); whether it
-    trained now. A prior trained now is exported to its kept copy."""
+    trained now. A prior trained now is exported to its kept copy. The prior is claimed first: where
+    another process holds it, wait for that one and use what it made. The store's record is written
+    last, so a prior whose training was cut off is never taken for a finished one."""
+    with claims.claim(grid.config.store, cell.name) as mine:
+        if mine:
+            return _train_prior(grid, cell, progress)
+    claims.wait_for_release(grid.config.store, cell.name)
+    return prior_of(grid, cell, progress)
+
+
+def _train_prior(grid: Grid, cell: PriorCell, progress: bool) -> bool:
     folder, kept = Path(cell.folder), kept_prior(grid.config, cell)
     if store.read_result(grid.config.store, cell) is not None:
         if (folder / "prior.json").is_file():
@@ -119,7 +142,7 @@ def prior_of(grid: Grid, cell: PriorCell, progress: bool = False) -> bool:
         export_prior(folder, kept, provenance={"bench_prior_cell": cell.name, "inputs": cell.inputs})
     store.write_result(grid.config.store, cell, {
         "kind": cell.kind, "env": cell.env, "target": cell.target, "steps": cell.steps,
-        "folder": cell.folder, "seconds": seconds})
+        "folder": cell.folder, "seconds": seconds, "versions": library_versions()})
     return True
 
 
@@ -157,7 +180,7 @@ def group_records(group: Sequence[LearnerCell], training: Sequence[Dataset], wor
     for cell, result in zip(group, results, strict=True):
         identity = {"env": cell.env, "target": cell.target, "gap": cell.gap, "column": cell.column,
                     "algo": cell.algo}
-        records.append({**identity, **result, **fingerprints, **cost})
+        records.append({**identity, **result, **fingerprints, **cost, "versions": library_versions()})
     return records
 
 
@@ -191,7 +214,7 @@ def run_local(grid: Grid, groups: list[list[LearnerCell]], progress: bool, work:
         with claims.claim(grid.config.store, group_claim(group)) as mine:
             if not mine:
                 echo(f"bench: skipped {group_label(group)}: another process is training it")
-            elif any(store.read_result(grid.config.store, cell) is None for cell in group):
+            elif any(store.current_result(grid.config.store, cell) is None for cell in group):
                 bar.set_postfix_str(f"running {len(group)} ({group_label(group)}), "
                                     f"{bar.total - bar.n - len(group)} left after them")
                 computed += _run_group(grid, group, made, work, progress)

@@ -38,3 +38,22 @@ def write_result(store: str | Path, cell: Cell, result: dict) -> Path:
     with atomic_path(path, ".json") as tmp:
         tmp.write_text(json.dumps({**result, "key": cell.key, "inputs": cell.inputs}, indent=1))
     return path
+
+
+def trained_on_other_data(store: str | Path, cell: LearnerCell, result: dict) -> bool:
+    """Whether a learner's stored result was trained on data other than what its data cells record
+    now (a data cell remade since, differently): such a result is flagged and recomputed."""
+    recorded = result.get("training_data")
+    for position, ref in enumerate(cell.training):
+        if isinstance(ref, DataCell) and recorded is not None:
+            made = read_result(store, ref)
+            if made is not None and recorded[position] != made["data_fingerprint"]:
+                return True
+    return False
+
+
+def current_result(store: str | Path, cell: LearnerCell) -> dict | None:
+    """The learner's stored result where it is current: stored under its key and trained on the data
+    its data cells record."""
+    result = read_result(store, cell)
+    return None if result is None or trained_on_other_data(store, cell, result) else result
