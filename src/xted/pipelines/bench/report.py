@@ -159,9 +159,10 @@ def _shown(cell: dict | None, tgt: dict | None, column: str) -> str:
     shown = f"{cell['mean']:.1f} ± {cell['std']:.1f}"
     if cell.get("ci95") is not None:
         shown += f" [{cell['ci95'][0]:.1f}, {cell['ci95'][1]:.1f}]"
+    shown += gain(cell["mean"], (tgt or {}).get("mean")) if _against_tgt(column) else ""
     if cell.get("trained_on_other_data"):
         shown += f" ({cell['trained_on_other_data']} seeds trained on other data: rerun)"
-    return shown + (gain(cell["mean"], (tgt or {}).get("mean")) if _against_tgt(column) else "")
+    return shown
 
 
 def _totals(rows: list[dict], columns: list[str]) -> list[str]:
