@@ -33,7 +33,8 @@ import numpy as np
 from xted.analysis import ProxyConfig, edit_report, fit_proxy
 from xted.fields import apply_overrides
 from xted.data import load, split_heldout
-from xted.diffusion.editor import EditConfig, edit_dataset
+from xted.diffusion.editor import EditConfig
+from xted.pipelines.edit import edit_source
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import dynamics_error
@@ -66,7 +67,7 @@ def main() -> None:
     train, heldout = split_heldout(load(args.target), args.heldout_episodes)
     prior = load_prior(args.prior)
     proxy = fit_proxy(train, ProxyConfig(seed=args.seed))
-    dynamics = fit_proxy(train, ProxyConfig(seed=args.seed + 1)).predict if args.project_dynamics else None
+    dynamics = fit_proxy(train, ProxyConfig(seed=args.seed + 1)) if args.project_dynamics else None
 
     def proxy_resolution(data) -> float:
         return dynamics_error(domain, data.observations, data.actions, proxy.predict(data.observations, data.actions)).mae
@@ -86,14 +87,14 @@ def main() -> None:
         config = dataclasses.replace(base, kappa=kappa, temperature=temperature, dynamics_weight=weight, seed=args.seed)
         floors = []
         for seed in range(args.seed, args.seed + args.floor_seeds):
-            floor, _ = edit_dataset(prior, heldout, dataclasses.replace(config, seed=seed), dynamics=dynamics)
+            floor, _ = edit_source(prior, heldout, dataclasses.replace(config, seed=seed), project_onto=dynamics)
             floors.append(edit_report(domain, heldout, floor, proxy))
         sims = [f["simulator"]["edited"]["mae"] for f in floors]
         floor_row = {"sim": float(np.mean(sims)), "sim_std": float(np.std(sims)), "sim_seeds": sims,
                      "n": floors[0]["simulator"]["edited"]["n"],
                      "proxy": float(np.mean([f["proxy"]["edited"] for f in floors]))}
         for gap, source in sources.items():
-            edited, report = edit_dataset(prior, source, config, dynamics=dynamics)
+            edited, report = edit_source(prior, source, config, project_onto=dynamics)
             measured = edit_report(domain, source, edited, proxy)
             content = measured["content"]
             row = {

@@ -153,3 +153,23 @@ def test_demo_on_shipped_data(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path / "bad"), "--proxy-steps", "-1"]) == 2
     assert main(["demo", "--out", str(tmp_path / "bad"), "--gap", "mass"]) == 2
     assert not (tmp_path / "bad").exists()
+
+
+def test_edit_source_composes_the_prior_s_edit_the_projection_and_the_relabelling(files):
+    """One function performs the whole edit: without options it is the prior's own edit; asked, it
+    projects onto a model of the target and relabels rewards by one, and its report says which."""
+    from xted.analysis import ProxyConfig
+    from xted.diffusion.config import EditConfig
+    from xted.diffusion.editor import edit_dataset
+    from xted.pipelines.edit import edit_source
+
+    prior, source, target = load_prior(files / "prior"), load(files / "source.hdf5"), load(files / "target.npz")
+    config = EditConfig(kappa=0.5, seed=3, guard=False)
+    plain, report = edit_source(prior, source, config)
+    np.testing.assert_array_equal(plain.observations, edit_dataset(prior, source, config)[0].observations)
+    assert not report["dynamics_projected"] and not report["rewards_relabelled"]
+    quick = ProxyConfig(steps=50, seed=3)
+    both, report = edit_source(prior, source, config, project_onto=target, dynamics_proxy=quick, relabel_from=target,
+                               reward_proxy=quick)
+    assert report["dynamics_projected"] and report["rewards_relabelled"]
+    assert not np.allclose(both.observations, plain.observations) and not np.allclose(both.rewards, plain.rewards)

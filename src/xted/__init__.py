@@ -1,7 +1,8 @@
 """xted: cross-domain trajectory editing with diffusion models.
 
 The public API (:mod:`xted.api`): ``load_dataset``, ``save_dataset``, ``train_prior``,
-``load_prior``, a prior's ``edit``, ``measure_edit``, ``train_policy``, ``load_policy``; loaded on
+``load_prior``, a prior's ``edit``, ``edit_source`` (the edit with the learned projection and reward
+relabelling, as ``xted edit`` runs it), ``measure_edit``, ``train_policy``, ``load_policy``; loaded on
 first use, so ``import xted`` stays light.
 """
 
@@ -13,7 +14,7 @@ _EXPORTS = {
     "load_dataset": "api", "save_dataset": "api", "train_prior": "api", "load_prior": "api", "measure_edit": "api",
     "train_policy": "api", "load_policy": "api",
     "Dataset": "data", "EditConfig": "diffusion", "PriorConfig": "diffusion", "Prior": "diffusion",
-    "Policy": "rl.policy_io",
+    "Policy": "rl.policy_io", "edit_source": "pipelines.edit",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -78,12 +78,10 @@ def edit(
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics, guarded (docs/editing.md): an edited
     window is kept only where it is valid in the target and more consistent with it than the source's."""
-    from xted.analysis import fit_proxy, fit_reward_proxy, relabel_rewards
     from xted.api import load_prior
     from xted.data import check_dimensions, formats, load
-    from xted.diffusion.editor import edit_dataset
-    from xted.diffusion.guard import fit_target_model
     from xted.envs import check_same_env, dataset_env
+    from xted.pipelines.edit import edit_source
 
     config = apply_overrides(EditConfig(), edit_fields)
     formats.check_writable(formats.target(out), overwrite=force)
@@ -101,14 +99,11 @@ def edit(
         if data is not None:
             check_dimensions(data, (source_data.observation_dim, source_data.action_dim), f"{role} {name}", "the source")
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
-    dynamics = None if dynamics_data is None else fit_proxy(
-        dynamics_data, ProxyConfig(steps=dynamics_proxy_steps, seed=config.seed)).predict
-    target_model = None if guard_data is None or not config.guard else fit_target_model(guard_data, seed=config.seed)
-    edited, report = edit_dataset(prior_model, source_data, config, progress=True, dynamics=dynamics,
-                                  target_model=target_model)
+    edited, report = edit_source(
+        prior_model, source_data, config, guard_target=guard_data, project_onto=dynamics_data,
+        dynamics_proxy=ProxyConfig(steps=dynamics_proxy_steps, seed=config.seed), relabel_from=reward_data,
+        reward_proxy=ProxyConfig(steps=reward_proxy_steps, seed=config.seed), progress=True)
     if reward_data is not None:
-        edited = relabel_rewards(edited, fit_reward_proxy(reward_data, ProxyConfig(steps=reward_proxy_steps,
-                                                                           seed=config.seed)))
         report["rewards_relabelled_from"] = relabel_rewards_from
     if dynamics_data is not None:
         report["dynamics_projected_by_a_model_of"] = project_dynamics

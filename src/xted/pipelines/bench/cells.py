@@ -8,17 +8,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from xted.analysis import fit_proxy
 from xted.data import Dataset, load
 from xted.data.augment import gaussian_copy
-from xted.diffusion.editor import edit_dataset
-from xted.diffusion.guard import fit_target_model
 from xted.diffusion.transitions import TransitionModelConfig, sample_transitions, train_transition_model
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.dynamics import predict_next_observations, recovered_velocities, replayed_rewards
 from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.pipelines.bench.grid import DataCell, LearnerCell, first_transitions
+from xted.pipelines.edit import edit_source
 from xted.rl.offline_train import train_offline
 
 
@@ -26,15 +24,15 @@ def edited(cell: DataCell, source: Dataset) -> Dataset:
     """The source edited with the cell's prior, as ``xted edit`` does (``--project-dynamics`` where
     the cell names a dynamics model; the guard's target model fitted to the row's target where the
     prior holds none)."""
-    dynamics = None
-    if cell.dynamics is not None:
-        target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
-        dynamics = fit_proxy(target, cell.dynamics.proxy, progress=False).predict
     prior = load_prior(cell.prior)
-    target_model = None
+    dynamics_target = None
+    if cell.dynamics is not None:
+        dynamics_target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
+    guard_target = None
     if cell.edit.guard and prior.target_model is None:  # a prior from before the guard: fit its model here
-        target_model = fit_target_model(load(f"{cell.env}-{cell.target}"), seed=cell.edit.seed)
-    data, _ = edit_dataset(prior, source, cell.edit, dynamics=dynamics, target_model=target_model)
+        guard_target = load(f"{cell.env}-{cell.target}")
+    data, _ = edit_source(prior, source, cell.edit, guard_target=guard_target, project_onto=dynamics_target,
+                          dynamics_proxy=None if cell.dynamics is None else cell.dynamics.proxy)
     return data
 
 
