@@ -116,9 +116,12 @@ def test_train_without_a_simulator(halfcheetah, tmp_path, capsys, monkeypatch):
     assert main(args) == 2 and "give --save DIR" in capsys.readouterr().err  # nothing would come of it
     monkeypatch.setattr(xted.rl.offline_train, "evaluate", lambda *a, **k: pytest.fail("evaluated without an env"))
     assert main([*args, "--save", str(tmp_path / "p")]) == 0
-    assert "not evaluated (no env)" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "not evaluated (no env); last losses: " in printed and "value_loss" in printed and "critic_loss" in printed
     policy = load_policy(tmp_path / "p")  # the one seed's folder
     assert policy.meta["domain"] is None and policy.scores["final_score"] is None and policy.kind == "gaussian"
+    (last,) = policy.scores["losses"]  # one segment of 20 updates: its mean losses, for judging convergence
+    assert last["step"] == 20 and {"value_loss", "actor_loss", "critic_loss", "q"} <= set(last)
     # Data of a known env trains without one too when asked: --env none.
     assert main(["policy", "--target", str(halfcheetah), "--env", "none", "--steps", "5", "--set", "hidden=8,8",
                  "--save", str(tmp_path / "q"), "--json"]) == 0

@@ -81,7 +81,9 @@ def policy(
         if evaluated:
             typer.echo(f"seed {r['seed']}: final {r['final_score']:.1f}  best {r['best_score']:.1f}{where}")
         else:
-            typer.echo(f"seed {r['seed']}: trained {steps} steps, not evaluated (no env){where}")
+            last = {name: value for name, value in (r.get("losses") or [{}])[-1].items() if name != "step"}
+            shown = ", ".join(f"{name} {value:.4g}" for name, value in last.items())
+            typer.echo(f"seed {r['seed']}: trained {steps} steps, not evaluated (no env); last losses: {shown}{where}")
     if evaluated:
         typer.echo(f"{algo} in {domain.name}: {summary['mean']:.1f} +- {summary['std']:.1f} over {len(scores)} seeds")
 

@@ -250,10 +250,12 @@ def train_offline(
     """Train ``algo`` on target + sources for every seed at once; evaluate in ``domain``.
 
     Evaluates every ``eval_every`` steps and at the end; with ``domain`` None nothing is evaluated
-    (``final_score`` and ``best_score`` are None, ``evals`` empty). Returns one result per seed (in
-    ``seeds`` order): ``final_score`` and ``best_score`` (normalised), the evaluations, training
-    speed, and ``policy``, the trained :class:`~xted.rl.policy_io.Policy` (absent for a seed
-    resumed from ``out_dir`` alone, whose actor was not saved).
+    (``final_score`` and ``best_score`` are None, ``evals`` empty) and the progress bar shows the
+    losses instead. Returns one result per seed (in ``seeds`` order): ``final_score`` and
+    ``best_score`` (normalised), the evaluations, ``losses`` (each loss and value estimate the update
+    reports, averaged over every 1,000 updates or evaluation interval), training speed, and ``policy``,
+    the trained :class:`~xted.rl.policy_io.Policy` (absent for a seed resumed from ``out_dir`` alone,
+    whose actor was not saved).
 
     With ``out_dir`` each seed's result is written to ``out_dir/seed_N.json`` when it finishes; with
     ``save_dir`` its policy to the folder ``save_dir/seed_N``. A seed is loaded instead of trained
@@ -362,15 +364,21 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
         return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)[i]), states.actor)
 
     evals: list[list[dict]] = [[] for _ in seeds]
+    losses: list[list[dict]] = [[] for _ in seeds]
     train_seconds, position = 0.0, 0
     bar = tqdm(total=steps, desc=f"{run['algo']} x{len(seeds)} seeds", unit="step", disable=not progress,
                smoothing=0.1)
     for end in _segment_ends(steps, eval_every):
         started = time.perf_counter()
-        states, train_keys, _ = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
-                                            position, source_filter, behaviour)
+        states, train_keys, infos = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
+                                                position, source_filter, behaviour)
         jax.block_until_ready(states)
         train_seconds += time.perf_counter() - started
+        segment = {name: np.asarray(values).mean(axis=1) for name, values in infos.items()}  # per seed
+        for i in range(len(seeds)):
+            losses[i].append({"step": end, **{name: float(means[i]) for name, means in segment.items()}})
+        if domain is None:
+            bar.set_postfix({name: f"{means.mean():.3g}" for name, means in segment.items() if name.endswith("loss")})
         bar.update(end - position)
         position = end
         if domain is not None and (end % eval_every == 0 or end == steps):
@@ -386,7 +394,7 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
     for i, (seed, history) in enumerate(zip(seeds, evals)):
         scores = {"final_score": history[-1]["normalized_score"] if history else None,
                   "best_score": max(e["normalized_score"] for e in history) if history else None,
-                  "evals": history, "updates_per_second": rate}
+                  "evals": history, "losses": losses[i], "updates_per_second": rate}
         meta = {**run, "seed": seed, "scores": scores}
         results.append({**run, "seed": seed, **scores, "policy": _policy(
             learner, actor(i).params, data, target.observation_dim, target.action_dim, meta)})
