@@ -37,13 +37,17 @@ def test_train_writes_config_log_and_checkpoints(files):
 def test_edit_cli_writes_the_named_format(files, capsys):
     out = files / "edited.npz"
     assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"),
-                 "--out", str(out), "--kappa", "0.5", "--seed", "3", "--no-guard"]) == 0
+                 "--out", str(out), "--kappa", "0.5", "--seed", "3", "--no-guard", "--json"]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     edited, source = load(out), load(files / "source.hdf5")
     assert report["transitions"] == len(source) == len(edited)
     np.testing.assert_array_equal(edited.terminals, source.terminals)
     assert edited.metadata["edit"]["config"]["kappa"] == 0.5
     assert not np.array_equal(edited.observations, source.observations)
+    assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"),
+                 "--out", str(files / "summarised.npz"), "--seed", "3", "--no-guard"]) == 0
+    printed = capsys.readouterr().out  # for a person: one summary line, no JSON
+    assert f"edited {len(source)} of {len(source)} transitions in " in printed and "{" not in printed
 
 
 @pytest.mark.slow
@@ -51,7 +55,7 @@ def test_edit_cli_relabels_rewards_with_a_target_reward_proxy(files, capsys):
     edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3", "--no-guard"]
     assert main([*edit, "--out", str(files / "plain.npz")]) == 0
     out = files / "relabelled.npz"
-    assert main([*edit, "--out", str(out), "--relabel-rewards", str(files / "target.npz"),
+    assert main([*edit, "--json", "--out", str(out), "--relabel-rewards", str(files / "target.npz"),
                  "--reward-proxy-steps", "200"]) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert report["rewards_relabelled_from"] == str(files / "target.npz")

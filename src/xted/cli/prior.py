@@ -74,6 +74,7 @@ def edit(
     force: bool = typer.Option(False, "--force", help="Replace an existing output."),
     allow_env_mismatch: bool = typer.Option(False, "--allow-env-mismatch",
                                             help="Edit data whose recorded env differs from the prior's."),
+    as_json: bool = typer.Option(False, "--json", help="Print the edit's whole report as one JSON line."),
     edit_fields: List[str] = (),
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics, guarded (docs/editing.md): an edited
@@ -108,12 +109,16 @@ def edit(
     if dynamics_data is not None:
         report["dynamics_projected_by_a_model_of"] = project_dynamics
     formats.save(edited, out, overwrite=force)
+    if as_json:
+        typer.echo(json.dumps({"out": out, **report}))
+        return
+    typer.echo(f"edited {report['transitions']} of {len(source_data)} transitions in {report['seconds']:.1f} s "
+               f"(kappa {config.kappa}{', guarded' if config.guard else ''}) -> {out}")
     if report["passed_through_episodes"]:
         typer.echo(f"{report['passed_through_episodes']} episodes shorter than the prior's windows "
                    f"({prior_model.config.horizon - 1} steps) passed through unedited")
     if "guard" in report:
         typer.echo(report["guard"]["verdict"])
-    typer.echo(json.dumps({"out": out, **report}))
 
 
 DEMO_PRIOR = "halfcheetah-medium-replay-cpu"
