@@ -343,19 +343,21 @@ def test_projected_edits_are_keyed_apart_and_projected_onto_a_model_of_the_row_s
     (heavier,) = plan(dataclasses.replace(projected_config, edit=("dynamics_weight=0.25",))).learners.values()
     assert heavier.data_cell.key != cell.key
 
+    from xted.pipelines import edit as whole_edit
+
     fitted, projections = [], []
-    real_fit, real_edit = cells.fit_proxy, cells.edit_dataset
+    real_fit, real_edit = whole_edit.fit_proxy, whole_edit.edit_dataset
 
     def fit_proxy(target, proxy_config, progress):
         fitted.append((len(target), proxy_config.steps))
         return real_fit(target, proxy_config, progress)
 
-    def edit_dataset(prior, source, edit, dynamics=None, target_model=None):
-        projections.append(dynamics)
-        return real_edit(prior, source, edit, dynamics=dynamics, target_model=target_model)
+    def edit_dataset(prior, source, edit, **settings):
+        projections.append(settings["dynamics"])
+        return real_edit(prior, source, edit, **settings)
 
-    monkeypatch.setattr(cells, "fit_proxy", fit_proxy)
-    monkeypatch.setattr(cells, "edit_dataset", edit_dataset)
+    monkeypatch.setattr(whole_edit, "fit_proxy", fit_proxy)
+    monkeypatch.setattr(whole_edit, "edit_dataset", edit_dataset)
     grid_plan = plan(projected_config)
     data = cells.make_data(cell, grid_plan.datasets[cell.source])
     assert fitted == [(200, 3)] and callable(projections[0])

@@ -92,7 +92,7 @@ def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None
 def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Dataset | str | Path] = (),
                  steps: int = 30_000, seed: int = 0, env: str | None = None, gap: str | None = None,
                  eval_every: int = 10_000, eval_episodes: int = 10, progress: bool = True, **fields: Any):
-    """Train an offline policy (``iql``, ``td3bc``, ``bc`` or ``dara``) on ``target`` + ``sources``
+    """Train an offline policy (``iql``, ``td3bc``, ``bc``, ``dara``, ``igdf`` or ``otdf``) on ``target`` + ``sources``
     and return it (a :class:`~xted.rl.policy_io.Policy`: ``act``, ``save``, ``scores``).
 
     ``env`` (``halfcheetah`` / ``walker2d``, with ``gap`` for another domain of it) evaluates the

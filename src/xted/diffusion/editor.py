@@ -320,7 +320,7 @@ def edit_dataset(
     edit = _editor(prior, config)
     seed_key = jax.random.key(config.seed)
     table = tiling.schedule(min(config.batch_size, max(int(tiling.window_episode.max(initial=0)) + 1, 1)))
-    for ids in tqdm(table, disable=not progress, unit="step", desc="edit", leave=False):
+    for ids in tqdm(table, disable=not progress, unit="round", desc="edit (rounds of windows)"):
         live = ids >= 0
         x = {s: norm[s][tiling.window_rows[np.where(live, ids, 0)]] for s in streams}
         previous, carried = tiling.window_previous[ids], tiling.window_carry_position[ids]

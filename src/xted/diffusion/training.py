@@ -26,6 +26,7 @@ from xted.diffusion.config import PriorConfig
 from xted.diffusion.guard import TargetModel, fit_target_model
 from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.prior import FORMAT, normalize_returns
+from xted.progress import restart_rate
 from xted.envs.domains import dataset_env
 from xted.errors import InputError
 
@@ -115,7 +116,8 @@ def train_prior(
     step_fn = make_train_step(config)
     rng = jax.random.key(config.seed + 1)
     losses: list[jnp.ndarray] = []
-    bar = tqdm(total=steps, initial=start, disable=not progress, unit="step", desc="prior")
+    bar = tqdm(total=steps, initial=start, disable=not progress or start >= steps, unit="step",
+               desc="prior (compiling)")
     began = time.perf_counter() - seconds
     try:
         with log_path.open("a", newline="") as log_file:
@@ -124,6 +126,9 @@ def train_prior(
                 state, metrics = step_fn(state, sampler.batch(data_rng, config.batch_size), rng)
                 losses.append(metrics["loss"])
                 bar.update(1)
+                if step == start + 1:  # the rate and ETA from here on: the first step compiled
+                    jax.block_until_ready(metrics["loss"])
+                    restart_rate(bar, "prior")
                 if step % log_every == 0 or step == steps:
                     loss = float(np.mean(jax.device_get(losses)))
                     losses = []

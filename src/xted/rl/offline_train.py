@@ -34,6 +34,7 @@ from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
 from xted.rl.evaluation import PolicyFn, evaluate
 from xted.rl.iql import IQLConfig, iql_act, iql_step, init_iql, locomotion_reward_scale
+from xted.progress import restart_rate
 from xted.rl.policy_io import POLICY_FILE, Policy
 from xted.rl.source_weighting import ScoredSource, weigh_batch
 from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
@@ -366,8 +367,8 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
     evals: list[list[dict]] = [[] for _ in seeds]
     losses: list[list[dict]] = [[] for _ in seeds]
     train_seconds, position = 0.0, 0
-    bar = tqdm(total=steps, desc=f"{run['algo']} x{len(seeds)} seeds", unit="step", disable=not progress,
-               smoothing=0.1)
+    description = f"{run['algo']} x{len(seeds)} seeds"
+    bar = tqdm(total=steps, desc=description, unit="step", disable=not progress, smoothing=0.1)
     for end in _segment_ends(steps, eval_every):
         started = time.perf_counter()
         states, train_keys, infos = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
@@ -380,6 +381,8 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
         if domain is None:
             bar.set_postfix({name: f"{means.mean():.3g}" for name, means in segment.items() if name.endswith("loss")})
         bar.update(end - position)
+        if position == 0:  # the first segment compiled: rate and ETA from the second on
+            restart_rate(bar, description)
         position = end
         if domain is not None and (end % eval_every == 0 or end == steps):
             for i, seed in enumerate(seeds):
