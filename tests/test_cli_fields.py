@@ -93,11 +93,11 @@ def test_derived_options_reach_the_config():
 
     runner = CliRunner()
     result = runner.invoke(demo, ["run", "--name", "y", "--target-return", "0.5", "--clip-denoised", "3",
-                                  "--batch-size", "7", "--hold-last"])
+                                  "--batch-size", "7", "--hold-actions"])
     assert result.exit_code == 0, result.output
     config = apply_overrides(EditConfig(), seen["fields"])
     assert seen["name"] == "y"
-    assert (config.target_return, config.clip_denoised, config.batch_size, config.hold_last) == (0.5, 3.0, 7, True)
+    assert (config.target_return, config.clip_denoised, config.batch_size, config.hold_actions) == (0.5, 3.0, 7, True)
     assert runner.invoke(demo, ["other", "--decay-steps", "none", "--no-use-reward", "--horizon", "8"]).exit_code == 0
     # Unset options stay unset (the preset decides); given ones, none included, are passed on.
     assert sorted(seen["prior"]) == ["decay_steps=none", "horizon=8", "use_reward=False"]

@@ -1,6 +1,5 @@
 import dataclasses
 
-import numpy as np
 import pytest
 
 from xted.fields import apply_overrides
@@ -64,31 +63,6 @@ def test_rl_configs_validate_themselves():
     for kind, fields, needle in bad:
         with pytest.raises(InputError, match=needle):
             kind(**fields)
-
-
-def test_old_names_still_work_with_a_deprecation_warning():
-    import importlib
-    import sys
-
-    from xted.data import Dataset
-    from xted.fields import known_fields
-    from xted.rl.config import BCConfig
-
-    for old, new in (("xted.config", "xted.fields"), ("xted.rl.configs", "xted.rl.config")):
-        sys.modules.pop(old, None)
-        with pytest.warns(DeprecationWarning, match=new):
-            module = importlib.import_module(old)
-        assert module.apply_overrides is importlib.import_module("xted.fields").apply_overrides if old == "xted.config" \
-            else module.BCConfig is BCConfig
-    with pytest.warns(DeprecationWarning, match="learning_rate"):
-        assert known_fields(BCConfig, {"lr": 1e-4}) == {"learning_rate": 1e-4}
-    with pytest.warns(DeprecationWarning, match="learning_rate"):
-        assert apply_overrides(BCConfig(), ["lr=1e-4"]).learning_rate == 1e-4
-    data = Dataset(observations=np.zeros((2, 1), np.float32), actions=np.zeros((2, 1), np.float32),
-                   rewards=np.zeros(2, np.float32), terminals=np.array([False, True]),
-                   timeouts=np.zeros(2, bool), next_observations=np.ones((2, 1), np.float32))
-    with pytest.warns(DeprecationWarning, match="require_next_observations"):
-        assert data.next_observations_or_derived() is data.next_observations
 
 
 def test_negative_seeds_are_refused_by_the_configs_the_cli_options_come_from():

@@ -52,16 +52,13 @@ def _windows(b: int = BATCH, seed: int = 0):
     return tuple(rng.normal(size=(b, H, d)).astype(np.float32) for d in (3, 2, 1))
 
 
-@pytest.mark.parametrize("hold_last", [False, True])
-def test_edit_windows_holds_transitions(prior, hold_last):
+def test_edit_windows_holds_the_first_transition(prior):
     s, a, r = _windows()
-    out = edit_windows(prior, s, a, r, EditConfig(guard=False, hold_last=hold_last), jax.random.key(0))
+    out = edit_windows(prior, s, a, r, EditConfig(guard=False), jax.random.key(0))
     for x, y in zip((s, a, r), out):
         y = np.asarray(y)
         assert y.shape == x.shape and np.all(np.isfinite(y))
         np.testing.assert_array_equal(y[:, 0], x[:, 0])
-        if hold_last:
-            np.testing.assert_array_equal(y[:, -1], x[:, -1])
         assert not np.allclose(y[:, 1:-1], x[:, 1:-1])
 
 
@@ -255,20 +252,17 @@ def test_reward_free_prior_carries_rewards(source):
     assert not np.allclose(result.observations, source.observations)
 
 
-@pytest.mark.parametrize("hold_last", [False, True])
-def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states(hold_last):
+def test_inverse_dynamics_prior_fills_actions_and_rewards_from_edited_states():
     """Inv: states are denoised; every transition's action and reward inside the window comes from
     the inverse models applied to the edited states; held transitions stay bit-identical."""
     prior = random_prior(dataclasses.replace(TINY, architecture="inverse_dynamics"))
     s, a, r = _windows()
-    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(guard=False, hold_last=hold_last),
+    out_s, out_a, out_r = (np.asarray(x) for x in edit_windows(prior, s, a, r, EditConfig(guard=False),
                                                              jax.random.key(0)))
     for x, y in zip((s, a, r), (out_s, out_a, out_r)):
         np.testing.assert_array_equal(y[:, 0], x[:, 0])
     for x, y in zip((a, r), (out_a, out_r)):  # the last action and reward are in no transition of the window
         np.testing.assert_array_equal(y[:, -1], x[:, -1])
-    if hold_last:
-        np.testing.assert_array_equal(out_s[:, -1], s[:, -1])
     assert not np.allclose(out_s[:, 1:-1], s[:, 1:-1])
     predicted_a, predicted_r = apply_inverse(prior.config.denoiser, prior.params, out_s)
     np.testing.assert_allclose(out_a[:, 1:-1], np.asarray(predicted_a)[:, 1:], rtol=1e-5, atol=1e-6)

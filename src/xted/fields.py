@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
-import warnings
 from typing import Any
 
 from xted.errors import InputError
@@ -24,26 +23,12 @@ def field_help(config_type: type) -> dict[str, str]:
     return {f.name: f.metadata.get("help", "") for f in dataclasses.fields(config_type)}
 
 
-def renamed_fields(config_type: type, fields: dict[str, Any]) -> dict[str, Any]:
-    """``fields`` with names a config renamed (its ``RENAMED = {old: new}``) given their new names,
-    with a DeprecationWarning, so configs saved or typed before a rename keep working."""
-    renames = getattr(config_type, "RENAMED", {})
-    for old in set(fields) & set(renames):
-        warnings.warn(f"{config_type.__name__}.{old} is now {renames[old]}; the old name goes in the next release",
-                      DeprecationWarning, stacklevel=3)
-        fields = {renames[old] if k == old else k: v for k, v in fields.items()}
-    return fields
-
-
 def _typed_values(config_type: type, pairs: list[str]) -> dict[str, Any]:
     """``["field=value", ...]`` -> typed values of a config dataclass's scalar fields."""
     hints = typing.get_type_hints(config_type)
-    renames = getattr(config_type, "RENAMED", {})
     overrides: dict[str, Any] = {}
     for pair in pairs:
         name, sep, text = pair.partition("=")
-        if name in renames:
-            name = next(iter(renamed_fields(config_type, {name: None})))
         if not sep or name not in hints:
             fields = ", ".join(f.name for f in dataclasses.fields(config_type))
             raise InputError(f"--set {pair!r}: expected FIELD=VALUE with FIELD one of {fields}")
@@ -96,9 +81,7 @@ def apply_overrides(config: Any, pairs: list[str]) -> Any:
 
 def known_fields(config_type: type, fields: dict[str, Any]) -> dict[str, Any]:
     """``fields`` if each names a field of the dataclass ``config_type``, else an InputError naming
-    the unknown ones (keyword arguments of the Python API, a config read from JSON); a renamed field's
-old name is given its new one (:func:`renamed_fields`)."""
-    fields = renamed_fields(config_type, fields)
+    the unknown ones (keyword arguments of the Python API, a config read from JSON)."""
     names = {f.name for f in dataclasses.fields(config_type)}
     unknown = sorted(set(fields) - names)
     if unknown:

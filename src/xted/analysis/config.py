@@ -17,7 +17,6 @@ class ProxyConfig:
     learning_rate: float = setting(1e-3, "Peak learning rate (cosine-decayed to 0 over the steps).")
     seed: int = setting(0, "Seed of initialisation and batches.")
 
-    RENAMED = {"lr": "learning_rate"}
 
     def __post_init__(self) -> None:
         if self.steps < 1 or self.batch_size < 1 or self.learning_rate <= 0 or not self.hidden:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -221,12 +220,6 @@ class Dataset:
             f"next_observations is missing and cannot be derived for the last step of an episode "
             f"(index {end}); use a dataset that stores next_observations"
         )
-
-    def next_observations_or_derived(self) -> np.ndarray:
-        """Deprecated name of :meth:`require_next_observations` (it never derived); goes in the next release."""
-        warnings.warn("Dataset.next_observations_or_derived is now require_next_observations", DeprecationWarning,
-                      stacklevel=2)
-        return self.require_next_observations()
 
     def summary(self) -> dict[str, Any]:
         """Counts, dimensions, return (None for reward-free data) and length statistics, extras and

@@ -203,7 +203,6 @@ class EditConfig:
     iterations: int = setting(1, "Repeated noise+denoise rounds.")
     hold_first: bool = setting(True, "Hold each episode's first transition (false: generate it too; later "
                                      "windows stay stitched to the one before).")
-    hold_last: bool = setting(False, "Hold the last transition of each window too.")
     hold_actions: bool = setting(False, "Keep every source action; edit states (and rewards) around them.")
     guidance: float = setting(0.0, "Classifier-free return guidance weight (0: unconditional, as the paper's Table 1).")
     target_return: float = setting(0.9, "Normalised return that guidance steers toward.")

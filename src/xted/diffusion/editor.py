@@ -2,7 +2,7 @@
 
 A window is noised to step ``k = round(kappa * K)`` and denoised by the reverse chain from exactly
 that step (``k`` DDPM model calls, or ``sampler_steps`` DDIM calls), with the first transition
-(and optionally the last) re-imposed clean after every step. The whole chain is one jitted
+re-imposed clean after every step. The whole chain is one jitted
 ``fori_loop``. Each window's noise comes from ``fold_in(key, window number)``, so the random draws
 do not depend on how windows are grouped into batches.
 
@@ -60,7 +60,6 @@ class _Plan:
     timesteps: tuple[int, ...]
     sampler: str
     iterations: int
-    hold_last: bool
     hold_actions: bool
     guidance: float | None
     clip: float | None
@@ -86,7 +85,6 @@ def _plan(prior: Prior, config: EditConfig) -> _Plan:
         timesteps=timesteps,
         sampler=config.sampler,
         iterations=config.iterations,
-        hold_last=config.hold_last,
         hold_actions=config.hold_actions,
         guidance=float(config.guidance) if prior.config.return_condition else None,
         clip=config.clip_denoised,
@@ -147,8 +145,6 @@ def _edit(
 
     def hold(x: dict[str, jnp.ndarray]) -> dict[str, jnp.ndarray]:
         out = {s: x[s].at[:, 0].set(jnp.where(held_first[:, None], x0[s][:, 0], x[s][:, 0])) for s in streams}
-        if plan.hold_last:
-            out = {s: out[s].at[:, -1].set(x0[s][:, -1]) for s in streams}
         if plan.hold_actions and "action" in out:
             out["action"] = x0["action"]
         return out

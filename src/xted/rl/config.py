@@ -71,8 +71,6 @@ class BCConfig:
     learning_rate: float = setting(3e-4, "Learning rate.")
     batch_size: int = setting(256, "Transitions per gradient step.")
 
-    RENAMED = {"lr": "learning_rate"}
-
     def __post_init__(self) -> None:
         check_fields(self)
 

@@ -41,7 +41,6 @@ from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
 
 AlgoConfig = IQLConfig | TD3BCConfig | BCConfig | DARAConfig | IGDFConfig | OTDFConfig
 Learner = IQLConfig | TD3BCConfig | BCConfig
-ALGORITHMS = OFFLINE_ALGORITHMS
 OBS_STD_EPS = 1e-3
 
 
@@ -64,13 +63,13 @@ _ALGORITHMS: dict[type, Algorithm] = {
 
 
 def default_config(name: str) -> AlgoConfig:
-    if name not in ALGORITHMS:
-        raise InputError(f"unknown algorithm {name!r}; known: {', '.join(ALGORITHMS)}")
-    return ALGORITHMS[name]()
+    if name not in OFFLINE_ALGORITHMS:
+        raise InputError(f"unknown algorithm {name!r}; known: {', '.join(OFFLINE_ALGORITHMS)}")
+    return OFFLINE_ALGORITHMS[name]()
 
 
 def algorithm_name(config: AlgoConfig) -> str:
-    return next(name for name, kind in ALGORITHMS.items() if isinstance(config, kind))
+    return next(name for name, kind in OFFLINE_ALGORITHMS.items() if isinstance(config, kind))
 
 
 def learner_config(config: AlgoConfig) -> Learner:

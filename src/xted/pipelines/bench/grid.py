@@ -221,7 +221,7 @@ def edit_identity(edit: EditConfig, projected: bool) -> dict:
     """What makes two of the bench's edits the same: the edit config, without ``dynamics_weight``
     where the edit is not projected (the weight changes nothing then), and without ``hold_first``
     where it holds (cells keyed before either field existed keep their keys)."""
-    fields = dataclasses.asdict(edit)
+    fields = {**dataclasses.asdict(edit), "hold_last": False}  # a field since removed, still in every edit's key
     if not projected:
         fields.pop("dynamics_weight")
     if edit.hold_first:
