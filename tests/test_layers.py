@@ -1,4 +1,4 @@
-"""The package's layers import only downward: core (errors, atomic, fields and its old name config,
+"""The package's layers import only downward: core (errors, atomic, fields,
 jsonfiles, lazy, nn, progress, resume) -> data -> envs -> diffusion | rl | analysis -> pipelines | viz | api
 (the public Python API) -> cli. Modules of one layer may import their own package, never a
 sibling package of the same layer (diffusion, rl and analysis stay independent of each other, and
@@ -18,7 +18,7 @@ LAYERS = {
     "viz": 4,
     "api": 4,  # the module xted.api: the public names over layers 1-3
 }
-CORE_MODULES = {"__init__", "errors", "atomic", "config", "fields", "jsonfiles", "lazy", "nn", "progress", "resume"}
+CORE_MODULES = {"__init__", "errors", "atomic", "fields", "jsonfiles", "lazy", "nn", "progress", "resume"}
 
 
 def component(module: str) -> str:
