@@ -1,9 +1,11 @@
 """The guarded edit against the paper's plain edit, every transition replayed in the target simulator.
 
     python benchmarks/guard_quality.py --env walker2d [--gaps gravity friction thigh] [--edit FIELD=VALUE ...]
-        [--out benchmarks/results/guard_quality.jsonl]
+        [--target medium-replay] [--prior FOLDER] [--out benchmarks/results/guard_quality.jsonl]
 
-With the shipped ``ENV-medium-replay-cpu`` prior (its target model shipped beside it), per source:
+With the shipped ``ENV-medium-replay-cpu`` prior (its target model shipped beside it), or for another
+target level the prior the bench trained for it (``--prior benchmarks/results/priors/ENV/prior-LEVEL-KEY``:
+the same two episodes held out; its target model fitted to the rest where it holds none), per source:
 simulator one-step MAE of the source, the plain edit and the guarded edit; their reward MAE; the
 transitions stepping into a state the target ends an episode on while flagged non-terminal; actions
 outside the action space; the guard's counts; the edit's wall time; and the guarded edit's rewards
@@ -27,6 +29,7 @@ from xted.analysis import ProxyConfig, fit_reward_proxy, relabel_rewards, simula
 from xted.data import load, shipped, split_heldout
 from xted.diffusion.config import EditConfig
 from xted.diffusion.editor import edit_dataset
+from xted.diffusion.guard import fit_target_model
 from xted.diffusion.prior import load_prior
 from xted.envs import parse_domain
 from xted.envs.make import action_bounds
@@ -51,14 +54,18 @@ def main() -> None:
     parser.add_argument("--env", required=True, choices=["halfcheetah", "walker2d"])
     parser.add_argument("--gaps", nargs="+", default=["gravity", "friction", "thigh"])
     parser.add_argument("--edit", nargs="*", default=[], help="EditConfig overrides of the guarded edit.")
+    parser.add_argument("--target", default="medium-replay", help="The target level the prior learned.")
+    parser.add_argument("--prior", type=Path, default=None, help="The prior (default: the shipped ENV-TARGET-cpu).")
     parser.add_argument("--out", type=Path, default=None, help="Append one JSON line per source.")
     args = parser.parse_args()
 
     domain = parse_domain(args.env)
-    prior = load_prior(shipped.prior_dir(f"{args.env}-medium-replay-cpu"))
+    prior = load_prior(args.prior or shipped.prior_dir(f"{args.env}-{args.target}-cpu"))
     guarded = apply_overrides(EditConfig(), args.edit)
     plain = dataclasses.replace(guarded, guard=False)
-    train, heldout = split_heldout(load(f"{args.env}-medium-replay"), FLOOR_EPISODES)
+    train, heldout = split_heldout(load(f"{args.env}-{args.target}"), FLOOR_EPISODES)
+    if prior.target_model is None:
+        prior = dataclasses.replace(prior, target_model=fit_target_model(train, seed=guarded.seed))
     floor_measures = simulator_measures(domain, edit_dataset(prior, heldout, plain)[0])
     floor, floor_reward = floor_measures["mae"], floor_measures["reward_mae"]
     reward_proxy = fit_reward_proxy(train, ProxyConfig(), progress=False)
@@ -69,7 +76,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     for gap in args.gaps:
         source = load(f"{args.env}-{gap}")
-        row = {"env": args.env, "gap": gap, "edit_config": dataclasses.asdict(guarded), "floor": floor,
+        row = {"env": args.env, "target": args.target, "gap": gap, "edit_config": dataclasses.asdict(guarded), "floor": floor,
                "floor_reward_mae": floor_reward,
                "resolution": prior.target_model.resolution, "source_sha256": source.fingerprint()}
         row["source"] = simulator_measures(domain, source)
