@@ -709,3 +709,22 @@ def test_a_learner_trained_on_data_its_data_cell_no_longer_records_is_flagged_an
 def test_the_one_command_form_is_refused_with_its_new_spelling(tmp_path, capsys, old, new):
     assert main(["bench", *old]) == 2
     assert new in capsys.readouterr().err
+
+
+def test_prune_lists_and_removes_the_stored_files_of_no_cell_of_the_grid(tmp_path, fake, capsys):
+    from pathlib import Path
+
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt", "Tgt+Edited"), seeds=(0,))
+    run_quietly(config)
+    kept = sorted(Path(config.store).glob("*/*.json"))
+    assert len(kept) == 3  # Tgt, Tgt+Edited and the edit they read
+    old = Path(config.store) / "halfcheetah" / "medium-replay-tgt-iql-seed0-000000000000.json"
+    old.write_text("{}")  # a cell of settings no longer planned
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Edited", "--seeds", "0", "--steps",
+               "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200", "--store", config.store,
+               "--cache", config.cache]
+    assert main(["bench", "prune", *options]) == 0
+    assert f"stale: {old}" in capsys.readouterr().out and old.exists()
+    assert main(["bench", "prune", *options, "--remove"]) == 0
+    assert "1 stored files match no cell of this grid; removed" in capsys.readouterr().out
+    assert sorted(Path(config.store).glob("*/*.json")) == kept

@@ -61,7 +61,8 @@ class _BenchCommands(TyperGroup):
 
 app = typer.Typer(cls=_BenchCommands, no_args_is_help=True, context_settings={"ignore_unknown_options": True},
                   help="The paper's Table 1 protocol as a resumable grid of cells (env x target x gap x column x algo "
-                  "x seed): `run` computes it, `report` reads it; both take the same grid options.")
+                  "x seed): `run` computes it, `report` reads it, `prune` lists (or removes) stored results of no "
+                  "cell of it; all take the same grid options.")
 
 
 def grid_config(
@@ -219,6 +220,28 @@ def report_grid(
         from xted.viz.plots import save_png, table_figure
 
         save_png(table_figure(rows), png)
+
+
+@app.command("prune", epilog=FIELDS)
+@with_grid
+def prune_store(
+    config: BenchConfig,
+    remove: bool = typer.Option(False, "--remove", help="Delete the files listed (default: list them only)."),
+) -> None:
+    """List the store's result files that match no cell of the grid these options name (stale: of
+    settings no longer planned, or of inputs since changed); --remove deletes them. Name every grid
+    whose results you keep, e.g. --targets medium-replay,medium,medium-expert --algos iql,td3bc
+    --columns with every column you run."""
+    from xted.pipelines.bench.grid import plan
+    from xted.pipelines.bench.store import stale_files
+
+    stale = stale_files(config.store, plan(config).cells())
+    for path in stale:
+        if remove:
+            path.unlink()
+        typer.echo(f"{'removed' if remove else 'stale'}: {path}")
+    typer.echo(f"bench: {len(stale)} stored files match no cell of this grid" + ("; removed" if remove and stale
+                                                                                   else ""))
 
 
 def _ray_config(executor: str, **given) -> RayConfig | None:

@@ -187,6 +187,17 @@ class Grid:
     rows: list[Row]
     learners: dict[str, LearnerCell]  # by key: a cell shared by several rows appears once
 
+    def cells(self) -> list[LearnerCell | DataCell | PriorCell]:
+        """Every cell of the grid once: learners, the data cells they read, the priors those read."""
+        found: dict[str, LearnerCell | DataCell | PriorCell] = dict(self.learners)
+        for learner in self.learners.values():
+            for ref in learner.training:
+                if isinstance(ref, DataCell):
+                    found.setdefault(ref.key, ref)
+                    if ref.prior_cell is not None:
+                        found.setdefault(ref.prior_cell.key, ref.prior_cell)
+        return list(found.values())
+
 
 def check_names(config: BenchConfig) -> None:
     """Every env, target level, gap and algorithm known, with its shipped data; before any loading."""

@@ -57,3 +57,10 @@ def current_result(store: str | Path, cell: LearnerCell) -> dict | None:
     its data cells record."""
     result = read_result(store, cell)
     return None if result is None or trained_on_other_data(store, cell, result) else result
+
+
+def stale_files(store: str | Path, cells: list[Cell]) -> list[Path]:
+    """The result files under ``store`` that belong to none of ``cells`` (by name, which ends in the
+    key's first 12 hex digits): cells of settings no longer planned, or of inputs since changed."""
+    current = {f"{cell.name}.json" for cell in cells}
+    return sorted(path for path in Path(store).glob("*/*.json") if path.name not in current)
