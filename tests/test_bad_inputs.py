@@ -82,6 +82,15 @@ def _halfcheetah_like(ws: Path, name: str, steps: int = 5000, env: str = "HalfCh
     return str(ws / name)
 
 
+def _nested_hdf5(ws: Path) -> str:
+    import h5py
+
+    with h5py.File(ws / "nested.hdf5", "w") as file:
+        group = file.create_group("data")
+        group["observations"], group["actions"] = np.zeros((5, 3)), np.zeros((5, 2))
+    return str(ws / "nested.hdf5")
+
+
 def _reward_free(ws: Path, name: str, obs_dim: int = 3, act_dim: int = 2) -> str:
     data = build_dataset(lengths=(30, 30), obs_dim=obs_dim, act_dim=act_dim)
     formats.save(dataclasses.replace(data, rewards=None, metadata={}), ws / name)
@@ -169,6 +178,8 @@ CASES = [
     Case("csv-file", "a .csv file given as a dataset", lambda ws: (ws / "d.csv").write_text("a,b\n1,2\n") and
          ["data", "info", str(ws / "d.csv")], "unknown extension"),
     Case("text-as-hdf5", "a text file named .hdf5", lambda ws: ["data", "info", _hdf5_text(ws)], "hdf5"),
+    Case("hdf5-arrays-in-a-group", "an HDF5 file whose arrays sit under a /data/ group, not at the root",
+         lambda ws: ["data", "info", _nested_hdf5(ws)], "the file holds /data/observations"),
     Case("truncated-hdf5", "an HDF5 file cut short", lambda ws: ["data", "info", _truncated_hdf5(ws)], "cut.hdf5"),
     Case("empty-npz", "an .npz holding no arrays", lambda ws: np.savez(ws / "e.npz") or
          ["data", "info", str(ws / "e.npz")], "e.npz"),

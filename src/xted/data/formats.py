@@ -306,10 +306,23 @@ def _read_hdf5(path: Path) -> Dataset:
             group = file.get(_HDF5_EXTRAS)
             extras = dict(_hdf5_leaves(group)) if isinstance(group, h5py.Group) else {}
             metadata = _hdf5_metadata(file, path)
+            nested = [] if "observations" in arrays else _nested_arrays(file, "observations")
     except OSError as err:
         raise InputError(f"{path}: not a readable HDF5 file ({err})") from None
+    if nested:
+        raise InputError(f"{path}: missing required key 'observations' at the file's root; the file holds "
+                         f"{', '.join('/' + name for name in nested)}: xted reads D4RL's layout, every array at the "
+                         "root (observations, actions, rewards, terminals, timeouts, next_observations)")
     notes: list[str] = []
     return _from_arrays(path, arrays, _numeric_only(extras, notes), metadata, notes)
+
+
+def _nested_arrays(file: h5py.File, name: str) -> list[str]:
+    """Paths of the arrays called ``name`` below the file's root."""
+    found: list[str] = []
+    file.visititems(lambda path, item: found.append(path) if isinstance(item, h5py.Dataset)
+                    and path.rsplit("/", 1)[-1] == name and "/" in path else None)
+    return found
 
 
 def _hdf5_leaves(group: h5py.Group, prefix: str = "") -> Iterator[tuple[str, np.ndarray]]:
