@@ -525,10 +525,11 @@ def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaul
 @pytest.mark.parametrize("option, value, message", [
     ("--columns", "Tgt,Tgt+Magic", "unknown column 'Tgt+Magic'"),
     ("--gaps", "thigh,moon", "unknown gap 'moon'"),
-    ("--envs", "hopper", "unknown env 'hopper'"),
+    ("--envs", "ant", "unknown env 'ant'"),
     ("--seeds", "0,0", "--seeds"),
     ("--prior-preset", "huge", "unknown prior preset 'huge'"),
     ("--prior-set", "hopper:cross_blocks=2", "'hopper' is not an env in the grid"),
+    ("--envs", "hopper", "no shipped dataset 'hopper-medium-replay'"),
     ("--prior-set", "cross_blocks", "expected FIELD=VALUE or ENV:FIELD=VALUE"),
     ("--prior-set", "walker2d:wings=2", "wings"),
 ])

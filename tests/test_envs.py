@@ -39,6 +39,7 @@ def test_parse_paper_and_parametric_gaps():
     assert (combo.gravity, combo.friction, combo.thigh) == (1.5, 1.0, 3.0)
     assert envs.parse_domain("halfcheetah", "thigh=2").gap == "thigh"
     assert envs.parse_domain("halfcheetah", None).is_target
+    assert envs.parse_domain("Hopper-v5", "gravity") == envs.parse_domain("hopper", "gravity")  # a Gymnasium id
 
 
 @pytest.mark.parametrize("env,gap", [("halfcheetah", "wind"), ("halfcheetah", "gravity=-1"), ("ant", None),
@@ -48,7 +49,7 @@ def test_bad_gaps_are_refused(env, gap):
         envs.parse_domain(env, gap)
 
 
-@pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d", "hopper"])
 def test_target_transitions_replay_exactly(env):
     obs, act, nxt = rollout(envs.parse_domain(env), steps=200)
     result = dynamics_error(envs.parse_domain(env), obs, act, nxt)
@@ -56,7 +57,7 @@ def test_target_transitions_replay_exactly(env):
     assert result.mae < 1e-8
 
 
-@pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d", "hopper"])
 @pytest.mark.parametrize("gap", ["gravity", "friction", "thigh", "thigh=0.5"])
 def test_each_gap_changes_the_dynamics(env, gap):
     source = envs.parse_domain(env, gap)

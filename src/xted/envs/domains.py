@@ -12,16 +12,18 @@ import math
 
 from xted.errors import InputError
 
-ENV_IDS = {"halfcheetah": "HalfCheetah-v5", "walker2d": "Walker2d-v5"}
+ENV_IDS = {"halfcheetah": "HalfCheetah-v5", "walker2d": "Walker2d-v5", "hopper": "Hopper-v5"}
 
 # The paper's source domains (xTED §5.1): 2x gravity, 0.25x/0.5x friction, 2x thigh.
 PAPER_GAPS = {
     "halfcheetah": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.25}, "thigh": {"thigh": 2.0}},
     "walker2d": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}, "thigh": {"thigh": 2.0}},
+    "hopper": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}, "thigh": {"thigh": 2.0}},  # walker2d's
 }
 
 # D4RL reference returns (random, expert) for normalised scores.
-REFERENCE_RETURNS = {"halfcheetah": (-280.178953, 12135.0), "walker2d": (1.629008, 4592.3)}
+REFERENCE_RETURNS = {"halfcheetah": (-280.178953, 12135.0), "walker2d": (1.629008, 4592.3),
+                     "hopper": (-20.272305, 3234.3)}
 
 FACTORS = ("gravity", "friction", "thigh")
 
@@ -60,7 +62,9 @@ class Domain:
 
 
 def parse_domain(env: str, gap: str | None = None) -> Domain:
-    """Parse ``env`` and a gap string into a :class:`Domain`; bad names raise InputError."""
+    """Parse ``env`` (our name, or its Gymnasium id: ``Hopper-v5``) and a gap string into a
+    :class:`Domain`; bad names raise InputError."""
+    env = {env_id: name for name, env_id in ENV_IDS.items()}.get(env, env)
     if env not in ENV_IDS:
         raise InputError(f"unknown env {env!r}; known: {', '.join(ENV_IDS)}")
     if gap is None or gap.strip().lower() in ("", "none", "target"):

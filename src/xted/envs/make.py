@@ -18,7 +18,7 @@ import numpy as np
 from xted.envs.domains import ENV_IDS, Domain, parse_domain
 from xted.envs.morphology import scaled_thigh_xml
 
-WALKER_HEALTHY_Z = (0.8, 2.0)
+HEALTHY_Z = {"walker2d": (0.8, 2.0), "hopper": (0.7, float("inf"))}  # the v5 envs' defaults
 
 
 def _forward_mujoco_warning(message: str) -> None:
@@ -46,14 +46,15 @@ def apply_physics(model: mujoco.MjModel, domain: Domain) -> None:
 
 
 def make(env: str | Domain, gap: str | None = None, **kwargs) -> gym.Env:
-    """A Gymnasium env of ``env`` (``halfcheetah``/``walker2d``) in the domain ``gap``."""
+    """A Gymnasium env of ``env`` (``halfcheetah``, ``walker2d``, ``hopper``) in the domain ``gap``."""
     domain = env if isinstance(env, Domain) else parse_domain(env, gap)
     if domain.thigh == 1.0:
         instance = gym.make(domain.env_id, **kwargs)
     else:
         xml, lift = scaled_thigh_xml(domain.env, _asset_xml(domain.env_id), domain.thigh)
-        if domain.env == "walker2d":
-            kwargs.setdefault("healthy_z_range", (WALKER_HEALTHY_Z[0] + lift, WALKER_HEALTHY_Z[1] + lift))
+        if domain.env in HEALTHY_Z:  # the torso stands higher by the thigh's added length
+            low, high = HEALTHY_Z[domain.env]
+            kwargs.setdefault("healthy_z_range", (low + lift, high + lift))
         with tempfile.TemporaryDirectory(prefix="xted-morph-") as folder:
             path = Path(folder) / f"{domain.env}_thigh.xml"
             path.write_text(xml)
@@ -72,8 +73,8 @@ def simulator(domain: Domain) -> tuple[mujoco.MjModel, int]:
 
 
 def observation_velocity_clip(domain: Domain) -> float:
-    """Walker2d-v5 clips velocities in its observations to +-10; HalfCheetah does not clip."""
-    return 10.0 if domain.env == "walker2d" else np.inf
+    """Walker2d-v5 and Hopper-v5 clip velocities in their observations to +-10; HalfCheetah does not."""
+    return 10.0 if domain.env in ("walker2d", "hopper") else np.inf
 
 
 def observation_bounds(env: str | None) -> tuple[np.ndarray, np.ndarray] | None:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-THIGH_BODIES = {"halfcheetah": ("bthigh", "fthigh"), "walker2d": ("thigh", "thigh_left")}
+THIGH_BODIES = {"halfcheetah": ("bthigh", "fthigh"), "walker2d": ("thigh", "thigh_left"), "hopper": ("thigh",)}
 
 
 def _vec(text: str) -> np.ndarray:

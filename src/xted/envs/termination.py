@@ -8,12 +8,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from xted.envs.make import WALKER_HEALTHY_Z
+from xted.envs.make import HEALTHY_Z
 
 Termination = Callable[[np.ndarray], np.ndarray]  # next observations [N, d] -> terminal [N] (bool)
 
 WALKER_HEALTHY_ANGLE = (-1.0, 1.0)
-HOPPER_HEALTHY_Z, HOPPER_HEALTHY_ANGLE, HOPPER_HEALTHY_STATE = 0.7, (-0.2, 0.2), 100.0
+HOPPER_HEALTHY_ANGLE, HOPPER_HEALTHY_STATE = (-0.2, 0.2), 100.0
 
 
 def _never(next_observations: np.ndarray) -> np.ndarray:
@@ -22,14 +22,14 @@ def _never(next_observations: np.ndarray) -> np.ndarray:
 
 def _walker2d(next_observations: np.ndarray) -> np.ndarray:
     z, angle = next_observations[:, 0], next_observations[:, 1]
-    healthy = (WALKER_HEALTHY_Z[0] < z) & (z < WALKER_HEALTHY_Z[1])
+    healthy = (HEALTHY_Z["walker2d"][0] < z) & (z < HEALTHY_Z["walker2d"][1])
     healthy &= (WALKER_HEALTHY_ANGLE[0] < angle) & (angle < WALKER_HEALTHY_ANGLE[1])
     return ~healthy
 
 
 def _hopper(next_observations: np.ndarray) -> np.ndarray:
     z, angle = next_observations[:, 0], next_observations[:, 1]
-    healthy = np.all(np.abs(next_observations[:, 1:]) < HOPPER_HEALTHY_STATE, axis=1) & (z > HOPPER_HEALTHY_Z)
+    healthy = np.all(np.abs(next_observations[:, 1:]) < HOPPER_HEALTHY_STATE, axis=1) & (z > HEALTHY_Z["hopper"][0])
     healthy &= (HOPPER_HEALTHY_ANGLE[0] < angle) & (angle < HOPPER_HEALTHY_ANGLE[1])
     return ~healthy
 
