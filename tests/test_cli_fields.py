@@ -108,3 +108,19 @@ def test_a_field_named_like_a_command_option_is_refused():
         @config_options(EditConfig, into="fields")
         def clash(kappa: float = 0.0, fields: list[str] = ()) -> None:
             pass
+
+
+def _command_paths(command=COMMANDS, path=()):
+    yield path
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _command_paths(sub, (*path, name))
+
+
+@pytest.mark.parametrize("path", list(_command_paths()), ids=" ".join)
+def test_help_reads_as_plain_text(path):
+    """No value hint on a flag (``--force <bool>`` reads as taking a value) and no reStructuredText
+    markup leaking from docstrings into what a user reads."""
+    result = CliRunner().invoke(app, [*path, "--help"], terminal_width=200)
+    assert result.exit_code == 0, result.output
+    assert "<bool>" not in result.output
+    assert "``" not in result.output and ":func:" not in result.output

@@ -34,6 +34,14 @@ def test_train_writes_config_log_and_checkpoints(files):
     assert (files / "prior" / "log.csv").read_text().count("\n") >= 2
 
 
+def test_rerunning_a_finished_train_says_so(files, capsys):
+    args = ["train", "--target", str(files / "target.npz"), "--out", str(files / "prior"), "--checkpoint-every", "2",
+            *TINY]
+    assert main([*args, "--steps", "2"]) == 0
+    assert "already trained to step 4" in capsys.readouterr().out
+    assert load_prior(files / "prior").step == 4
+
+
 def test_edit_cli_writes_the_named_format(files, capsys):
     out = files / "edited.npz"
     assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"),

@@ -61,7 +61,7 @@ class _BenchCommands(TyperGroup):
 
 app = typer.Typer(cls=_BenchCommands, no_args_is_help=True, context_settings={"ignore_unknown_options": True},
                   help="The paper's Table 1 protocol as a resumable grid of cells (env x target x gap x column x algo "
-                  "x seed): `run` computes it, `report` reads it, `prune` lists (or removes) stored results of no "
+                  "x seed): run computes it, report reads it, prune lists (or removes) stored results of no "
                   "cell of it; all take the same grid options.")
 
 

@@ -9,8 +9,19 @@ import importlib
 import sys
 
 import typer
+import typer.core
 
 from xted.errors import InputError
+
+
+def _flag_type_hidden(display_type_rich):
+    """Typer labels an on/off flag ``<bool>`` in help, as if it took a value; a flag takes none."""
+    def display(option, ctx):
+        return None if option.is_flag else display_type_rich(option, ctx)
+    return display
+
+
+typer.core.TyperOption.display_type_rich = _flag_type_hidden(typer.core.TyperOption.display_type_rich)
 
 app = typer.Typer(
     name="xted",

@@ -32,7 +32,7 @@ def dynamics(
     """One-step dynamics error per gap: source, edited source and the floor (the same edit of
     held-out target data), replayed in the target simulator and, beside it, by the learned proxy.
 
-    Input: the file ``python benchmarks/edit_quality.py ... --out FILE`` appends to, one JSON
+    Input: the file "python benchmarks/edit_quality.py ... --out FILE" appends to, one JSON
     object per gap and kappa (keys gap, kappa, sim_source, sim_edited, floor.sim; proxy_source,
     proxy_edited, floor.proxy for the proxy's panel)."""
     from xted.viz.plots import check_png_path, dynamics_figure, save_png
@@ -126,7 +126,7 @@ def table(
 ) -> None:
     """The paper's Table 1 as grouped bars: per env, target and algorithm, a group per gap and a
     bar per column (Src, Tgt, Tgt+Src, Tgt+Edited, Tgt+Oracle, Tgt+Src DARA, Tgt+Edited DARA): mean and std over
-    seeds, each seed a dot. ``xted bench report --png FILE`` draws the same figure."""
+    seeds, each seed a dot. "xted bench report --png FILE" draws the same figure."""
     from xted.viz.plots import check_png_path, save_png, table_figure
     from xted.viz.results import read_bench_rows
 

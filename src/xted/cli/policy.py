@@ -48,7 +48,7 @@ def policy(
         "standardisation, data fingerprints); finished seeds are skipped."),
 ) -> None:
     """Train an offline policy per seed (all seeds at once); report normalised scores in the target
-    env, and with --save keep the policies (xted.load_policy, ``Policy.act``)."""
+    env, and with --save keep the policies (xted.load_policy, then Policy.act)."""
     from xted.data import load
     from xted.envs import check_same_env, dataset_env, parse_domain
     from xted.rl.offline_train import default_config, train_offline

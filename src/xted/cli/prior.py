@@ -37,6 +37,7 @@ def train(
 
     The preset gives every field of the prior's config; an option below (or --set FIELD=VALUE) replaces one."""
     from xted.data import load, split_heldout
+    from xted.diffusion.checkpoint import trained_steps
     from xted.diffusion.config import preset as make_preset
     from xted.diffusion.training import train_prior
 
@@ -45,8 +46,12 @@ def train(
     config = apply_overrides(config, [*prior_fields, *overrides])
     if force:
         discard_run(out, ("prior.json",))
+    steps_before = trained_steps(out)
     train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
-    typer.echo(f"prior trained to step {steps} in {out}")
+    if steps_before >= steps:
+        typer.echo(f"prior already trained to step {steps_before} in {out} (--steps {steps}); nothing to do")
+    else:
+        typer.echo(f"prior trained to step {steps} in {out}")
 
 
 @app.command()

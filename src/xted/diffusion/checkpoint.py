@@ -26,6 +26,13 @@ def checkpoint_manager(out_dir: Path) -> ocp.CheckpointManager:
     return ocp.CheckpointManager(out_dir.resolve() / "checkpoints", options=options)
 
 
+def trained_steps(out_dir: Path) -> int:
+    """The step of the last finished checkpoint in ``out_dir`` (0 where there is none); reads the
+    folder only (Orbax names a finished step's folder by its number, one in progress otherwise)."""
+    folder = Path(out_dir) / "checkpoints"
+    return max((int(p.name) for p in folder.iterdir() if p.name.isdigit()), default=0) if folder.is_dir() else 0
+
+
 def prepare_out_dir(out_dir: Path, meta: dict[str, Any]) -> None:
     """Write ``prior.json``, or check that the one there describes the same run."""
     path = out_dir / "prior.json"
