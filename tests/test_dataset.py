@@ -117,6 +117,19 @@ def test_require_next_observations(tiny_dataset):
         bare.require_next_observations()
 
 
+def test_a_loaded_file_s_missing_next_observations_is_named(tiny_dataset, tmp_path):
+    from xted.data import load, save
+
+    path = tmp_path / "no-next.npz"
+    save(Dataset(**{**_fields(tiny_dataset), "next_observations": None}), path)
+    loaded = load(path)
+    with pytest.raises(InputError, match=re.escape(f"{path}: next_observations is missing")):
+        loaded.require_next_observations()
+    with pytest.raises(InputError, match=re.escape(str(path))):
+        loaded.select_episodes([0]).require_next_observations()
+    assert "origin" not in loaded.metadata and load(save(loaded, tmp_path / "again.npz").path).origin != str(path)
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(lengths=st.lists(st.integers(1, 6), min_size=1, max_size=6), seed=st.integers(0, 5))
 def test_episode_bounds_property(make_dataset, lengths, seed):

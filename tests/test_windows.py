@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
+
 import numpy as np
 import pytest
 
@@ -107,3 +110,36 @@ def test_stitching_schedule_edits_each_window_after_the_one_it_starts_from(make_
     last = {int(previous[i]): tiling.window_carry_position[i] for i in np.flatnonzero(nxt)}
     for window, position in zip(w, p):
         assert position < last.get(int(window), tiling.window_rows.shape[1] - 1)
+
+
+def test_training_says_which_episodes_it_leaves_out(make_dataset):
+    from xted.data import Normalizer
+    from xted.diffusion.config import preset
+    from xted.diffusion.training import training_windows
+    from xted.errors import DataWarning
+
+    dataset = make_dataset(lengths=(2, 7, 1, 8))
+    config = dataclasses.replace(preset("tiny", 3, 2), horizon=5)
+    with pytest.warns(DataWarning, match=r"2 of 4 target episodes are shorter than the prior's horizon \(5 steps\)"):
+        _, info = training_windows(dataset, Normalizer.fit(dataset), config)
+    assert info["skipped_episodes"] == 2
+
+
+def test_one_long_episode_is_warned_of(make_dataset):
+    from xted.data.windows import warn_if_one_long_episode
+    from xted.errors import DataWarning
+
+    with pytest.warns(DataWarning, match="one episode of 1500 steps"):
+        warn_if_one_long_episode(make_dataset(lengths=(1500,)), "the target data")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_if_one_long_episode(make_dataset(lengths=(1000,)), "the target data")
+        warn_if_one_long_episode(make_dataset(lengths=(900, 900)), "the target data")
+
+
+def test_the_cli_prints_a_data_warning_as_one_line():
+    import xted.cli.main  # noqa: F401  (installs the format)
+    from xted.errors import DataWarning
+
+    assert warnings.formatwarning("3 episodes left out", DataWarning, "x.py", 1) == "xted: warning: 3 episodes left out\n"
+    assert "x.py:1" in warnings.formatwarning("other", UserWarning, "x.py", 1)

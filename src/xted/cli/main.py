@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import importlib
 import sys
+import warnings
 
 import typer
 import typer.core
 
-from xted.errors import InputError
+from xted.errors import DataWarning, InputError
 
 
 def _flag_type_hidden(display_type_rich):
@@ -22,6 +23,18 @@ def _flag_type_hidden(display_type_rich):
 
 
 typer.core.TyperOption.display_type_rich = _flag_type_hidden(typer.core.TyperOption.display_type_rich)
+
+
+def _short_data_warnings(format_warning):
+    """A DataWarning reads ``xted: warning: ...``, without the source line Python adds."""
+    def formatted(message, category, *args, **kwargs):
+        if issubclass(category, DataWarning):
+            return f"xted: warning: {message}\n"
+        return format_warning(message, category, *args, **kwargs)
+    return formatted
+
+
+warnings.formatwarning = _short_data_warnings(warnings.formatwarning)
 
 app = typer.Typer(
     name="xted",

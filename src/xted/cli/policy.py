@@ -102,6 +102,9 @@ def _evaluation_env(env: str | None, recorded: str | None, gap: str | None, save
     if name is None and gap is not None:
         raise InputError("--gap names a domain to evaluate in: give --env too")
     if name is None and save is None:
-        why = "--env none" if env is not None else "the target data records no simulated env (halfcheetah, walker2d)"
+        known = ", ".join(ENV_IDS)
+        why = ("--env none" if env is not None
+               else f"the target data records env {recorded!r}, which xted does not simulate (known: {known})"
+               if recorded else f"the target data records no env (known: {known}; or give --env)")
         raise InputError(f"{why}: the policy cannot be evaluated, so give --save DIR to keep it")
     return name

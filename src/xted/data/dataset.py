@@ -36,6 +36,7 @@ class Dataset:
     next_observations: np.ndarray | None = None
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
+    origin: str | None = None  # the file it was read from, for errors; never written
 
     def __post_init__(self) -> None:
         observations = _float_array("observations", self.observations, ndim=2)
@@ -165,6 +166,7 @@ class Dataset:
             next_observations=None if self.next_observations is None else self.next_observations[steps],
             extras={k: v[steps] for k, v in self.extras.items()},
             metadata=self.metadata,
+            origin=self.origin,
         )
 
     @staticmethod
@@ -216,8 +218,9 @@ class Dataset:
         if self.next_observations is not None:
             return self.next_observations
         end = int(np.flatnonzero(self.terminals | self.timeouts)[0])
+        where = f"{self.origin}: " if self.origin else ""
         raise InputError(
-            f"next_observations is missing and cannot be derived for the last step of an episode "
+            f"{where}next_observations is missing and cannot be derived for the last step of an episode "
             f"(index {end}); use a dataset that stores next_observations"
         )
 

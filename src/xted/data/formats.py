@@ -212,6 +212,7 @@ def _from_arrays(
             next_observations=arrays.get("next_observations"),
             extras=extras,
             metadata=metadata,
+            origin=str(where),
         )
     except InputError as err:
         raise InputError(f"{where}: {err}") from None

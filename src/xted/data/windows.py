@@ -17,7 +17,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from xted.data.dataset import Dataset
-from xted.errors import InputError
+from xted.errors import InputError, warn_data
+
+LONGEST_PLAIN_EPISODE = 1000  # Gymnasium's locomotion envs end every episode by then
+
+
+def warn_if_one_long_episode(dataset: Dataset, what: str) -> None:
+    """Warn where ``dataset`` is one episode longer than any locomotion episode: most often a file that
+    records no episode ends, whose windows would then span the resets between its episodes."""
+    if dataset.num_episodes == 1 and len(dataset) > LONGEST_PLAIN_EPISODE:
+        warn_data(f"{what} is one episode of {len(dataset)} steps (no terminal or timeout before its last step): "
+                  "if it holds several episodes, windows span the resets between them; record terminals or "
+                  "timeouts (xted data info shows the episodes)")
 
 
 def window_index(dataset: Dataset, horizon: int, stride: int = 1) -> tuple[np.ndarray, int]:

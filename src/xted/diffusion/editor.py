@@ -34,7 +34,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from xted.data import Dataset, check_dimensions
-from xted.data.windows import EpisodeTiling, tile_episodes
+from xted.data.windows import EpisodeTiling, tile_episodes, warn_if_one_long_episode
 from xted.diffusion.config import DenoiserConfig, EditConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse
 from xted.diffusion.guard import GuardVerdict, TargetModel, judge_windows, verdict_line, window_means
@@ -296,6 +296,7 @@ def edit_dataset(
                   "seconds": time.perf_counter() - began}
         return source.with_metadata(**metadata), report
 
+    warn_if_one_long_episode(source, "the source data")
     tiling = tile_episodes(bounds, cfg.horizon)
     if not len(tiling.window_rows):
         raise InputError(f"nothing to edit: every episode of the source is shorter than the prior's windows "

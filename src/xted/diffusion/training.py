@@ -20,7 +20,7 @@ import orbax.checkpoint as ocp
 from tqdm.auto import tqdm
 
 from xted.data import Dataset, Normalizer, check_dimensions
-from xted.data.windows import WindowSampler, window_index
+from xted.data.windows import WindowSampler, warn_if_one_long_episode, window_index
 from xted.diffusion.checkpoint import checkpoint_manager, prepare_out_dir, read_log, write_log
 from xted.diffusion.config import PriorConfig
 from xted.diffusion.guard import TargetModel, fit_target_model
@@ -28,7 +28,7 @@ from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.prior import FORMAT, normalize_returns
 from xted.progress import restart_rate
 from xted.envs.domains import dataset_env
-from xted.errors import InputError
+from xted.errors import InputError, warn_data
 
 
 def _normalized_fields(dataset: Dataset, normalizer: Normalizer, use_reward: bool) -> dict[str, np.ndarray]:
@@ -42,6 +42,7 @@ def _normalized_fields(dataset: Dataset, normalizer: Normalizer, use_reward: boo
 
 
 def training_windows(dataset: Dataset, normalizer: Normalizer, config: PriorConfig) -> tuple[WindowSampler, dict]:
+    warn_if_one_long_episode(dataset, "the target data")
     index, skipped = window_index(dataset, config.horizon)
     raw_returns = dataset.rewards.astype(np.float64)[index].sum(axis=1)
     low, high = float(raw_returns.min()), float(raw_returns.max())
@@ -54,6 +55,9 @@ def training_windows(dataset: Dataset, normalizer: Normalizer, config: PriorConf
         loss_mask=loss_mask,
     )
     info = {"return_range": [low, high], "windows": int(len(index)), "skipped_episodes": int(skipped)}
+    if skipped:
+        warn_data(f"{skipped} of {dataset.num_episodes} target episodes are shorter than the prior's horizon "
+                  f"({config.horizon} steps) and were left out of training")
     return sampler, info
 
 
