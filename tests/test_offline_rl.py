@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -107,3 +109,39 @@ def test_dara_penalises_transitions_the_target_dynamics_would_not_produce():
     change = corrected_rewards(np.zeros(1000), deltas[0], config)
     assert change[:500].mean() < -0.2
     assert change[500:].mean() > -0.02
+
+
+def test_action_range_is_the_env_s_or_else_the_data_s():
+    from xted.errors import DataWarning
+    from xted.rl.offline_train import action_range
+
+    inside = np.array([[0.5, -1.0], [1.0, 0.2]])
+    assert action_range(inside, None) is None
+    assert action_range(inside, (-np.ones(2), np.ones(2))) is None
+    wide = np.array([[4.0, 0.5], [0.2, -0.5]])
+    with pytest.warns(DataWarning, match=r"dimension\(s\) \[0\] span beyond \[-1, 1\]"):
+        low, high = action_range(wide, None)
+    np.testing.assert_array_equal(low, [-1, -1])
+    np.testing.assert_array_equal(high, [4, 1])
+    with pytest.warns(DataWarning, match=r"50.0% of the training actions lie outside the env's action space"):
+        assert action_range(wide, (-np.ones(2), np.ones(2))) is None
+
+
+def test_a_policy_acts_in_its_data_s_action_range(make_dataset):
+    """Own data whose actions span +-5 (no env to declare a range): BC learns them rescaled and the
+    saved policy acts in the data's range instead of saturating at 1."""
+    from xted.errors import DataWarning
+    from xted.rl.offline_train import train_offline
+
+    base = make_dataset(lengths=(60, 60), obs_dim=3, act_dim=2, seed=3)
+    actions = np.stack([5 * np.tanh(base.observations[:, 0]), 0.5 * np.tanh(base.observations[:, 1])], axis=1)
+    data = dataclasses.replace(base, actions=actions.astype(np.float32))
+    with pytest.warns(DataWarning, match="acts in the data's range"):
+        [result] = train_offline(BCConfig(hidden=(32, 32)), data, [], None, 1500, [0], eval_every=1500,
+                                 progress=False)
+    policy = result["policy"]
+    assert policy.meta["action_high"][0] == pytest.approx(actions[:, 0].max())
+    assert policy.meta["action_low"][1] == -1.0 and policy.meta["action_high"][1] == 1.0
+    acted = policy.act(data.observations)
+    assert np.abs(acted[:, 0]).max() > 2.5 and np.abs(acted).max() <= np.abs(actions).max() + 1e-5
+    assert np.mean(np.abs(acted[:, 0] - actions[:, 0])) < 1.0

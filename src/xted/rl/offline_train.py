@@ -24,8 +24,9 @@ from tqdm.auto import tqdm
 
 from xted.atomic import atomic_path
 from xted.data import Dataset, check_dimensions
-from xted.envs import Domain, make
-from xted.errors import InputError
+from xted.envs import Domain, dataset_env, make
+from xted.envs.make import action_bounds
+from xted.errors import InputError, warn_data
 from xted.jsonfiles import read_json
 from xted.resume import check_same_run
 from xted.rl import igdf, otdf
@@ -35,7 +36,7 @@ from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, sourc
 from xted.rl.evaluation import PolicyFn, evaluate
 from xted.rl.iql import IQLConfig, iql_act, iql_step, init_iql, locomotion_reward_scale
 from xted.progress import restart_rate
-from xted.rl.policy_io import POLICY_FILE, Policy
+from xted.rl.policy_io import POLICY_FILE, Policy, to_action_range
 from xted.rl.source_weighting import ScoredSource, weigh_batch
 from xted.rl.td3bc import TD3BCConfig, init_td3bc, td3bc_update
 
@@ -86,14 +87,50 @@ class OfflineData:
     obs_mean: np.ndarray
     obs_std: np.ndarray
     target_size: int
+    action_range: tuple[np.ndarray, np.ndarray] | None = None  # actions were rescaled from it into [-1, 1]
+
+
+ACTION_TOLERANCE = 1e-6
+
+
+def action_range(actions: np.ndarray, declared: tuple[np.ndarray, np.ndarray] | None
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The range a policy must act in, where it is not [-1, 1] (the learners' tanh range): the env's
+    declared action space, else the data's own per dimension (widened to [-1, 1]). Actions outside a
+    declared space are reported (the policy cannot reproduce them); a range learnt from the data is
+    reported too, so no saturation goes unsaid."""
+    if declared is not None:
+        low, high = (np.asarray(b, np.float64) for b in declared)
+        outside = ((actions < low - ACTION_TOLERANCE) | (actions > high + ACTION_TOLERANCE)).any(axis=1)
+        if outside.any():
+            warn_data(f"{outside.mean():.1%} of the training actions lie outside the env's action space "
+                      f"[{low.min():g}, {high.max():g}] (up to {np.abs(actions).max():.3g}): the policy acts inside "
+                      "it, so it cannot reproduce them")
+    else:
+        low, high = np.minimum(actions.min(axis=0), -1.0), np.maximum(actions.max(axis=0), 1.0)
+        wider = np.flatnonzero((low < -1 - ACTION_TOLERANCE) | (high > 1 + ACTION_TOLERANCE))
+        if wider.size:
+            warn_data(f"actions of dimension(s) {wider.tolist()} span beyond [-1, 1] (up to "
+                      f"{np.abs(actions).max():.3g}) and the data records no env whose action space says otherwise: "
+                      "the policy learns them rescaled into [-1, 1] and acts in the data's range (action_low / "
+                      "action_high of the saved policy)")
+    if np.allclose(low, -1.0) and np.allclose(high, 1.0):
+        return None
+    return low.astype(np.float32), high.astype(np.float32)
 
 
 def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards: bool = False,
-                 next_states: bool = True) -> OfflineData:
+                 next_states: bool = True, declared_actions: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> OfflineData:
     """Target then sources as flat arrays; with ``normalize_rewards`` IQL's locomotion reward scale.
     Without ``next_states`` (behaviour cloning) the arrays hold no next observations, so data that
-    stores none trains too."""
+    stores none trains too. Actions are rescaled into [-1, 1] from :func:`action_range`'s range
+    (``declared_actions``: the env's action space) where that is not [-1, 1]."""
     datasets = [target, *sources]
+    actions = np.concatenate([d.actions for d in datasets])
+    scale = action_range(actions, declared_actions)
+    if scale is not None:
+        actions = 2 * (actions - scale[0]) / (scale[1] - scale[0]) - 1
     observations = np.concatenate([d.observations for d in datasets])
     mean = observations.mean(axis=0)
     std = observations.std(axis=0) + OBS_STD_EPS
@@ -102,14 +139,14 @@ def prepare_data(target: Dataset, sources: Sequence[Dataset], normalize_rewards:
         rewards = rewards * locomotion_reward_scale(np.concatenate([d.episode_returns() for d in datasets]))
     arrays = {
         "observations": (observations - mean) / std,
-        "actions": np.concatenate([d.actions for d in datasets]),
+        "actions": actions,
         "rewards": rewards,
         "terminals": np.concatenate([d.terminals for d in datasets]),
     }
     if next_states:
         arrays["next_observations"] = (np.concatenate([d.require_next_observations() for d in datasets]) - mean) / std
     arrays = {k: v.astype(np.float32) for k, v in arrays.items()}
-    return OfflineData(arrays, mean.astype(np.float32), std.astype(np.float32), len(target))
+    return OfflineData(arrays, mean.astype(np.float32), std.astype(np.float32), len(target), scale)
 
 
 def s4rl_augment(batch: dict, key, std: float) -> dict:
@@ -193,9 +230,14 @@ def _greedy(config: Learner, actor, obs, obs_mean, obs_std):
     return jnp.clip(_ALGORITHMS[type(config)].act(actor, (obs - obs_mean) / obs_std), -1.0, 1.0)
 
 
-def seed_policy(config: Learner, actor, obs_mean: np.ndarray, obs_std: np.ndarray) -> PolicyFn:
-    """Evaluation policy of one seed's actor: standardise, act (greedy), clip to [-1, 1]."""
-    return lambda obs: np.asarray(_greedy(config, actor, jnp.asarray(obs, jnp.float32), obs_mean, obs_std))
+def seed_policy(config: Learner, actor, obs_mean: np.ndarray, obs_std: np.ndarray,
+                action_range: tuple[np.ndarray, np.ndarray] | None = None) -> PolicyFn:
+    """Evaluation policy of one seed's actor: standardise, act (greedy), clip to [-1, 1], and map into
+    ``action_range`` where the data's actions were rescaled from it."""
+    def act(obs):
+        action = np.asarray(_greedy(config, actor, jnp.asarray(obs, jnp.float32), obs_mean, obs_std))
+        return action if action_range is None else to_action_range(action, *action_range)
+    return act
 
 
 # ----------------------------------------------------------------------------------------- driver
@@ -321,7 +363,9 @@ def _policy(learner: Learner, actor_params, data: OfflineData, obs_dim: int, act
     return Policy(actor_params, {
         **meta, "policy": _ALGORITHMS[type(learner)].policy_kind, "hidden": list(learner.hidden),
         "obs_dim": obs_dim, "action_dim": action_dim,
-        "obs_mean": data.obs_mean.tolist(), "obs_std": data.obs_std.tolist()})
+        "obs_mean": data.obs_mean.tolist(), "obs_std": data.obs_std.tolist(),
+        **({} if data.action_range is None else {"action_low": data.action_range[0].tolist(),
+                                                 "action_high": data.action_range[1].tolist()})})
 
 
 def _weigh_source(config: AlgoConfig, data: OfflineData, keys) -> tuple[np.ndarray, dict, Any]:
@@ -352,7 +396,8 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
                  domain: Domain | None, seeds: list[int], run: dict, progress: bool) -> list[dict]:
     steps, eval_every, s4rl_noise = run["steps"], run["eval_every"], run["s4rl_noise"]
     data = prepare_data(target, sources, getattr(learner, "normalize_rewards", False),
-                        next_states=not isinstance(learner, BCConfig))
+                        next_states=not isinstance(learner, BCConfig),
+                        declared_actions=action_bounds(domain.env if domain else dataset_env(target.metadata)))
     keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 3))(jnp.asarray(seeds))
     init_keys, train_keys, source_keys = keys[:, 0], keys[:, 1], keys[:, 2]
     rewards, rows, behaviour = _weigh_source(config, data, source_keys)
@@ -385,8 +430,8 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
         position = end
         if domain is not None and (end % eval_every == 0 or end == steps):
             for i, seed in enumerate(seeds):
-                result = evaluate(seed_policy(learner, actor(i), data.obs_mean, data.obs_std), domain,
-                                  run["eval_episodes"], seed=seed * 1_000_003 + end)
+                policy = seed_policy(learner, actor(i), data.obs_mean, data.obs_std, data.action_range)
+                result = evaluate(policy, domain, run["eval_episodes"], seed=seed * 1_000_003 + end)
                 evals[i].append({"step": end, "normalized_score": result["normalized_score"],
                                  "return_mean": result["return_mean"]})
             bar.set_postfix(score=f"{np.mean([e[-1]['normalized_score'] for e in evals]):.1f}")

@@ -49,6 +49,11 @@ def load_actor(path: str | Path) -> tuple[dict, dict]:
         raise InputError(f"{path} is not an xted policy checkpoint ({err})") from None
 
 
+def to_action_range(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """An action in [-1, 1] mapped affinely into [low, high] per dimension."""
+    return (low + (np.asarray(action) + 1) * (high - low) / 2).astype(np.float32)
+
+
 @functools.lru_cache(maxsize=None)
 def _forward(kind: str, hidden: tuple[int, ...], action_dim: int):
     """One jitted forward per network shape, shared by every actor of that shape."""
@@ -61,7 +66,8 @@ class Policy:
     """A loaded policy: ``act(obs, rng)`` explores as it was trained to; ``act(obs)`` is greedy.
 
     ``obs`` is one observation ``[obs_dim]`` or a batch ``[N, obs_dim]``; actions come back in the
-    same layout, in [-1, 1]."""
+    same layout, in [-1, 1], or in ``[action_low, action_high]`` where the policy learnt a wider
+    range from its data."""
 
     def __init__(self, params, meta: dict):
         self.kind = meta.get("policy", "tanh_gaussian")
@@ -73,6 +79,9 @@ class Policy:
         standardised = "obs_mean" in meta
         self._obs_mean = np.asarray(meta["obs_mean"], np.float32) if standardised else None
         self._obs_std = np.asarray(meta["obs_std"], np.float32) if standardised else None
+        ranged = "action_low" in meta
+        self.action_range = (np.asarray(meta["action_low"], np.float32),
+                             np.asarray(meta["action_high"], np.float32)) if ranged else None
 
     @classmethod
     def load(cls, path: str | Path) -> "Policy":
@@ -97,6 +106,11 @@ class Policy:
         return self.meta.get("scores")
 
     def act(self, obs: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        action = self._act_unit(obs, rng)
+        return action if self.action_range is None else to_action_range(action, *self.action_range)
+
+    def _act_unit(self, obs: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
+        """The actor's action in [-1, 1]."""
         obs = np.asarray(obs, np.float32)
         if self._obs_mean is not None:
             if obs.shape[-1:] != self._obs_mean.shape:
