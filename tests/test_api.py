@@ -71,3 +71,17 @@ def test_train_save_load_a_policy_without_a_simulator(tmp_path):
         xted.train_policy("bc", target, steps=1, gap="thigh")
     with pytest.raises(InputError, match="does not exist"):
         xted.load_policy(tmp_path / "nothing")
+
+
+def test_split_heldout_gives_the_episodes_train_prior_leaves_out(tmp_path, monkeypatch):
+    import xted.api
+    import xted.diffusion.training
+
+    target = build_dataset(lengths=(9, 10, 12, 11), seed=0)
+    trained_on = []
+    monkeypatch.setattr(xted.diffusion.training, "train_prior", lambda data, out, *a, **k: trained_on.append(data))
+    monkeypatch.setattr(xted.api, "load_prior", lambda path: None)
+    xted.train_prior(target, out=tmp_path / "prior", heldout_episodes=2, preset="tiny")
+    train, heldout = xted.split_heldout(target, 2)
+    assert trained_on[0].fingerprint() == train.fingerprint()
+    assert train.num_episodes == heldout.num_episodes == 2 and len(train) + len(heldout) == len(target)

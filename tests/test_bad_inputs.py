@@ -56,6 +56,12 @@ def _tiny(ws: Path, name: str = "tiny.npz", **kwargs) -> str:
     return str(path)
 
 
+def _step_file(ws: Path, returns: str) -> str:
+    """A user's step function file ``robot.py`` whose ``step`` returns ``returns``; its ``FILE:step`` name."""
+    (ws / "robot.py").write_text(f"def step(observations, actions):\n    return {returns}\n")
+    return f"{ws / 'robot.py'}:step"
+
+
 def _arrays(ws: Path, name: str, **changes) -> str:
     data = build_dataset(lengths=(30, 30))
     arrays = {k: getattr(data, k) for k in ("observations", "actions", "rewards", "terminals", "timeouts")}
@@ -234,6 +240,13 @@ CASES = [
          lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100), "--out",
                      _halfcheetah_like(ws, "t.npz", 100), "--project-dynamics", str(ws / "t.npz"), "--force"],
          "inputs are never overwritten"),
+    Case("edit-step-function-missing", "--project-dynamics names a step function in a file that does not exist",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100), "--out",
+                     str(ws / "o.npz"), "--project-dynamics", f"{ws / 'robot.py'}:step"], "no file"),
+    Case("edit-step-function-wrong-shape", "a step function returning next observations of another shape",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100), "--out",
+                     str(ws / "o.npz"), "--no-guard", "--project-dynamics", _step_file(ws, "observations[:, :3]")],
+         "it must return next observations"),
     Case("edit-kappa-range", "--kappa 1.5", lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _tiny(ws),
                                                          "--out", str(ws / "o.npz"), "--kappa", "1.5"],
          "kappa must be in [0, 1]"),
@@ -298,6 +311,12 @@ CASES = [
     Case("policy-force-not-a-run", "--force on a folder that holds no results",
          lambda ws: ["policy", "--target", _halfcheetah_like(ws, "t.npz", 1000), *POLICY_QUICK,
                      "--out", _not_a_run(ws), "--force"], "refusing to delete"),
+    Case("analyze-step-function-no-function", "--env names a function its file does not define",
+         lambda ws: ["analyze", "dynamics", _tiny(ws), "--env", f"{_step_file(ws, 'observations')[:-5]}:stepp"],
+         "has no function stepp"),
+    Case("analyze-step-function-with-gap", "--gap with a step function",
+         lambda ws: ["analyze", "dynamics", _tiny(ws), "--env", _step_file(ws, "observations"), "--gap", "gravity"],
+         "--gap names a domain"),
     Case("policy-no-env-no-save", "data of no known env, trained without --save (nothing would be kept)",
          lambda ws: ["policy", "--target", _tiny(ws), "--steps", "10"], "give --save DIR"),
     Case("policy-env-none-no-save", "--env none without --save",

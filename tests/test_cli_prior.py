@@ -58,6 +58,21 @@ def test_edit_cli_writes_the_named_format(files, capsys):
     assert f"edited {len(source)} of {len(source)} transitions in " in printed and "{" not in printed
 
 
+def test_edit_cli_projects_onto_a_user_step_function(files, tmp_path, capsys):
+    """--project-dynamics file.py:function: with weight 1 every edited next state is the function's
+    prediction from the state before it (here: the state itself)."""
+    (tmp_path / "still.py").write_text("def step(observations, actions):\n    return observations\n")
+    out = files / "projected.npz"
+    assert main(["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--out", str(out),
+                 "--kappa", "0.5", "--no-guard", "--dynamics-weight", "1.0",
+                 "--project-dynamics", f"{tmp_path / 'still.py'}:step", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report["dynamics_projected"] and report["dynamics_projected_by_step_function"].endswith("still.py:step")
+    edited, source = load(out), load(files / "source.hdf5")
+    np.testing.assert_allclose(edited.next_observations, edited.observations, atol=1e-5)
+    assert not np.allclose(source.next_observations, source.observations)
+
+
 @pytest.mark.slow
 def test_edit_cli_relabels_rewards_with_a_target_reward_proxy(files, capsys):
     edit = ["edit", "--prior", str(files / "prior"), "--source", str(files / "source.hdf5"), "--seed", "3", "--no-guard"]

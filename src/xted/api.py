@@ -18,10 +18,13 @@ Every name is exported from ``xted`` itself and loaded on first use, so ``import
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from xted.data import Dataset
 from xted.errors import InputError
+
+if TYPE_CHECKING:
+    from xted.envs.step_function import StepFunction
 
 
 def load_dataset(source: str | Path) -> Dataset:
@@ -46,7 +49,8 @@ def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cp
 
     ``preset``: ``cpu`` (small, fast) or ``paper``; ``fields`` replace any of its
     :class:`~xted.diffusion.config.PriorConfig` fields (``decay_steps=20_000``, ...);
-    ``heldout_episodes`` random target episodes are left out of training (to measure the floor)."""
+    ``heldout_episodes`` random target episodes are left out of training (to measure the floor): they
+    are ``xted.split_heldout(target, heldout_episodes)[1]``."""
     from xted.data import split_heldout
     from xted.fields import known_fields
     from xted.diffusion.config import PriorConfig
@@ -75,17 +79,23 @@ def load_prior(source: str | Path):
     return load(path)
 
 
-def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None, env: str | None = None,
-                 proxy_steps: int = 20_000, seed: int = 0) -> dict:
+def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None,
+                 env: str | StepFunction | None = None,
+                 proxy_steps: int = 20_000, seed: int = 0, velocity_index: int | None = None) -> dict:
     """What an edit did: ``content`` always (how much of the source's task content it kept);
     ``proxy`` with ``target`` (the paper's measure: one-step error of source and edit under an MLP
-    dynamics model fitted to the target, ``proxy_steps`` Adam steps); ``simulator`` with ``env``
-    (``halfcheetah`` or ``walker2d``: every transition replayed in that target simulator)."""
+    dynamics model fitted to the target, ``proxy_steps`` Adam steps); ``simulator`` with ``env``:
+    an env xted simulates (``halfcheetah``, ``walker2d``, ``hopper`` or their Gymnasium ids; every
+    transition replayed in that target simulator), or your own step function
+    ``f(observations [N, d], actions [N, a]) -> next observations [N, d]`` (one-step errors only: it
+    gives no rewards). ``velocity_index``: the observation column of forward velocity, for the
+    content measure's correlation (xted knows it for the envs it simulates)."""
     from xted.analysis import ProxyConfig, edit_report, fit_proxy
     from xted.envs import parse_domain
 
     proxy = None if target is None else fit_proxy(target, ProxyConfig(steps=proxy_steps, seed=seed), progress=False)
-    return edit_report(None if env is None else parse_domain(env), source, edited, proxy)
+    dynamics = parse_domain(env) if isinstance(env, str) else env
+    return edit_report(dynamics, source, edited, proxy, velocity_index)
 
 
 
@@ -95,7 +105,7 @@ def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Data
     """Train an offline policy (``iql``, ``td3bc``, ``bc``, ``dara``, ``igdf`` or ``otdf``) on ``target`` + ``sources``
     and return it (a :class:`~xted.rl.policy_io.Policy`: ``act``, ``save``, ``scores``).
 
-    ``env`` (``halfcheetah`` / ``walker2d``, with ``gap`` for another domain of it) evaluates the
+    ``env`` (``halfcheetah``, ``walker2d`` or ``hopper``, with ``gap`` for another domain of it) evaluates the
     policy every ``eval_every`` steps in that simulator; None trains without one (data of any
     robot). ``fields`` replace fields of the algorithm's config (``expectile=0.9``,
     ``hidden=(64, 64)``; DARA's backbone as ``iql=IQLConfig(...)``)."""

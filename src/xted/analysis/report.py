@@ -10,11 +10,17 @@ from xted.data import Dataset
 from xted.envs import Domain
 from xted.envs.dynamics import dataset_dynamics_error, reward_error
 from xted.envs.make import forward_velocity_index
+from xted.envs.step_function import StepFunction, step_function_error
 
 
-def simulator_measures(domain: Domain, data: Dataset) -> dict:
+def simulator_measures(domain: Domain | StepFunction, data: Dataset) -> dict:
     """Simulator dynamics error (MAE, MSE, n, of those how many reach beyond the observation clip,
-    how many were excluded at it) and the recorded rewards' error (MAE, bias; None for reward-free data)."""
+    how many were excluded at it) and the recorded rewards' error (MAE, bias; None for reward-free
+    data, and for a user's step function, which gives no rewards)."""
+    if not isinstance(domain, Domain):
+        dynamics = step_function_error(domain, data)
+        return {"mae": dynamics.mae, "mse": dynamics.mse, "n": dynamics.n, "beyond_clip": 0, "excluded_clipped": 0,
+                "reward_mae": None, "reward_bias": None}
     dynamics = dataset_dynamics_error(domain, data)
     rewards = reward_error(domain, data) if data.has_rewards else None
     return {"mae": dynamics.mae, "mse": dynamics.mse, "n": dynamics.n, "beyond_clip": dynamics.beyond_clip,
@@ -22,14 +28,18 @@ def simulator_measures(domain: Domain, data: Dataset) -> dict:
             "reward_bias": rewards and rewards.bias}
 
 
-def edit_report(domain: Domain | None, source: Dataset, edited: Dataset, proxy: DynamicsProxy | None = None) -> dict:
-    """``{"simulator": {"source", "edited"}`` (with a domain), ``"proxy": {"source", "edited"}`` (with a
-    proxy), ``"content"}`` (the forward-velocity correlation where the domain names that dim)."""
+def edit_report(domain: Domain | StepFunction | None, source: Dataset, edited: Dataset,
+                proxy: DynamicsProxy | None = None, forward_index: int | None = None) -> dict:
+    """``{"simulator": {"source", "edited"}`` (with a domain, or a user's step function), ``"proxy":
+    {"source", "edited"}`` (with a proxy), ``"content"}`` (with the forward-velocity correlation where
+    ``forward_index`` or the domain names that observation column)."""
     report: dict = {}
     if domain is not None:
         report["simulator"] = {name: simulator_measures(domain, data) for name, data in (("source", source),
                                                                                          ("edited", edited))}
     if proxy is not None:
         report["proxy"] = {"source": proxy.error(source).mae, "edited": proxy.error(edited).mae}
-    report["content"] = content_similarity(source, edited, None if domain is None else forward_velocity_index(domain))
+    if forward_index is None and isinstance(domain, Domain):
+        forward_index = forward_velocity_index(domain)
+    report["content"] = content_similarity(source, edited, forward_index)
     return report

@@ -16,31 +16,43 @@ app = typer.Typer(help="Measure datasets: simulator dynamics error, learned prox
 @app.command("dynamics")
 def dynamics(
     datasets: List[str] = typer.Argument(..., help="Dataset paths or shipped names."),
-    env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
+    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d, hopper (or a Gymnasium id), or your own step "
+                            "function as module:function or path/to/file.py:function (f(observations, actions) -> "
+                            "next observations, batched; docs/own_data.md)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to replay in (default: the target domain)."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Replay every transition (s, a, s') in the domain's simulator: next-state MAE and MSE, and
-    how far the recorded rewards are from the domain's own (MAE, bias = recorded - replayed)."""
+    how far the recorded rewards are from the domain's own (MAE, bias = recorded - replayed). A step
+    function gives the next-state errors only."""
     from xted.data import load
     from xted.envs.dynamics import dataset_dynamics_error, reward_error
+    from xted.envs.step_function import is_step_function_spec, load_step_function, step_function_error
+    from xted.errors import InputError
 
-    domain = parse_domain(env, gap)
+    if is_step_function_spec(env):
+        if gap is not None:
+            raise InputError("--gap names a domain of a simulated env; a step function is its own domain")
+        step = load_step_function(env)
+        measure, domain_name = (lambda data: (step_function_error(step, data), None)), env
+    else:
+        domain = parse_domain(env, gap)
+        measure, domain_name = (lambda data: (dataset_dynamics_error(domain, data), reward_error(domain, data))), domain.name
     results = []
     for name in datasets:
-        data = load(name)
-        error = dataset_dynamics_error(domain, data)
-        results.append({"path": name, **error.summary(), "reward": reward_error(domain, data).summary()})
+        error, rewards = measure(load(name))
+        results.append({"path": name, **error.summary(), "reward": None if rewards is None else rewards.summary()})
     if as_json:
-        print(json.dumps({"env": env, "domain": domain.name, "datasets": results}))
+        print(json.dumps({"env": env, "domain": domain_name, "datasets": results}))
         return
-    print(f"simulator dynamics error in {domain.name}")
+    print(f"simulator dynamics error in {domain_name}")
     print(f"{'dataset':40s} {'n':>7s} {'excluded':>8s} {'MAE':>9s} {'MSE':>9s} {'MAE p50':>9s} {'MAE p90':>9s} "
           f"{'rew MAE':>9s} {'rew bias':>9s}")
     for row in results:
-        q = row["mae_quantiles"]
+        q, reward = row["mae_quantiles"], row["reward"]
+        rewards = "        -         -" if reward is None else f"{reward['mae']:9.4f} {reward['bias']:9.4f}"
         print(f"{row['path'][-40:]:40s} {row['n']:7d} {row['excluded_clipped']:8d} {row['mae']:9.4f} "
-              f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f} {row['reward']['mae']:9.4f} {row['reward']['bias']:9.4f}")
+              f"{row['mse']:9.4f} {q['p50']:9.4f} {q['p90']:9.4f} {rewards}")
 
 
 @app.command("validity")
@@ -148,7 +160,11 @@ def proxy(
 def content(
     source: str = typer.Argument(..., help="The source dataset."),
     edited: str = typer.Argument(..., help="Its edit (same episodes)."),
-    env: Optional[str] = typer.Option(None, "--env", help="halfcheetah or walker2d: adds the forward-velocity correlation."),
+    env: Optional[str] = typer.Option(None, "--env", help="halfcheetah, walker2d or hopper: adds the forward-velocity "
+                                      "correlation."),
+    velocity_index: Optional[int] = typer.Option(None, "--velocity-index", min=0,
+                                                 help="The observation column of forward velocity, for data of another "
+                                                 "env: adds the forward-velocity correlation."),
     cutoff: float = typer.Option(0.2, "--cutoff", min=0.01, max=1.0,
                                  help="Low-frequency band, as a fraction of the Nyquist frequency."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
@@ -159,7 +175,7 @@ def content(
     from xted.data import load
     from xted.envs.make import forward_velocity_index
 
-    forward = forward_velocity_index(parse_domain(env)) if env else None
+    forward = forward_velocity_index(parse_domain(env)) if env and velocity_index is None else velocity_index
     scores = content_similarity(load(source), load(edited), forward, cutoff)
     if as_json:
         print(json.dumps({"source": source, "edited": edited, "cutoff": cutoff, **scores}))

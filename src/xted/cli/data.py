@@ -53,7 +53,7 @@ def convert(
 
 @app.command()
 def make(
-    env: Annotated[str, typer.Option("--env", help="halfcheetah or walker2d.")],
+    env: Annotated[str, typer.Option("--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id).")],
     level: Annotated[str, typer.Option("--level", help="random, medium, medium-replay, expert, medium-expert, source.")],
     out: Annotated[str, typer.Option("--out", help=DEST_HELP)],
     gap: Annotated[str | None, typer.Option("--gap", help="Domain gap (source data), e.g. gravity or thigh=3.")] = None,

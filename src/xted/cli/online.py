@@ -26,7 +26,7 @@ RUN_FIELDS = "\n\n".join(fields_epilog({f"--set {name}.FIELD (with --algo {name}
 @config_options(OnlineRunConfig, into="run_fields", skip=("total_steps", "init_from", "sac", "td3"),
                 panel="Run settings")
 def train(
-    env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
+    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain gap to train in (default: target)."),
     out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed (same settings)."),
     steps: int = typer.Option(OnlineRunConfig.total_steps, "--steps", min=1,

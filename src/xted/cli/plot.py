@@ -83,7 +83,7 @@ def spectrum(
 def trajectory(
     source: str = typer.Argument(..., help="Source dataset (path or shipped name)."),
     edited: str = typer.Argument(..., help="Its edit (same episodes)."),
-    env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
+    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain whose simulator replays the edit (default: target)."),
     episode: int = typer.Option(0, "--episode", help="Episode index (negative counts from the end)."),
     dims: Optional[str] = typer.Option(None, "--dims",

@@ -26,7 +26,7 @@ def policy(
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     sources: List[str] = typer.Option([], "--source", help="Source dataset mixed in (repeatable)."),
     env: Optional[str] = typer.Option(
-        None, "--env", help="halfcheetah or walker2d, to evaluate in (default: the target data's recorded env); "
+        None, "--env", help="halfcheetah, walker2d or hopper, to evaluate in (default: the target data's recorded env); "
         "none: train without a simulator (needs --save)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: the target domain)."),
     steps: int = typer.Option(100_000, "--steps", min=1, help="Gradient steps per seed."),

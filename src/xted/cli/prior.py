@@ -67,8 +67,9 @@ def edit(
                                            help="Training steps of that proxy."),
     project_dynamics: Optional[str] = typer.Option(
         None, "--project-dynamics",
-        help="Target dataset to fit a dynamics model to (the paper's proxy); each edited state becomes --dynamics-weight "
-        "x that model's prediction from the state before + the rest x the prior's (opt-in, beyond the paper; "
+        help="Target dataset to fit a dynamics model to (the paper's proxy), or your own step function "
+        "(module:function or file.py:function; docs/own_data.md); each edited state becomes --dynamics-weight "
+        "x its prediction from the state before + the rest x the prior's (opt-in, beyond the paper; "
         "docs/editing.md)."),
     dynamics_proxy_steps: int = typer.Option(ProxyConfig.steps, "--dynamics-proxy-steps", min=1,
                                              help="Training steps of that dynamics model."),
@@ -87,11 +88,15 @@ def edit(
     from xted.api import load_prior
     from xted.data import check_dimensions, formats, load
     from xted.envs import check_same_env, dataset_env
+    from xted.envs.step_function import is_step_function_spec, load_step_function
     from xted.pipelines.edit import edit_source
 
     config = apply_overrides(EditConfig(), edit_fields)
     formats.check_writable(formats.target(out), overwrite=force)
     prior_model = load_prior(prior)
+    step_function, step_spec = None, project_dynamics
+    if project_dynamics is not None and is_step_function_spec(project_dynamics):
+        step_function, project_dynamics = load_step_function(project_dynamics), None
     formats.check_apart(formats.target(out), {"--source": source, "--relabel-rewards": relabel_rewards_from,
                                               "--project-dynamics": project_dynamics, "--target": guard_target,
                                               "--prior": prior_model.path})
@@ -106,13 +111,15 @@ def edit(
             check_dimensions(data, (source_data.observation_dim, source_data.action_dim), f"{role} {name}", "the source")
             check_same_env(prior_model.env, dataset_env(data.metadata), f"{role} {name}", allow_env_mismatch)
     edited, report = edit_source(
-        prior_model, source_data, config, guard_target=guard_data, project_onto=dynamics_data,
+        prior_model, source_data, config, guard_target=guard_data, project_onto=step_function or dynamics_data,
         dynamics_proxy=ProxyConfig(steps=dynamics_proxy_steps, seed=config.seed), relabel_from=reward_data,
         reward_proxy=ProxyConfig(steps=reward_proxy_steps, seed=config.seed), progress=True)
     if reward_data is not None:
         report["rewards_relabelled_from"] = relabel_rewards_from
     if dynamics_data is not None:
         report["dynamics_projected_by_a_model_of"] = project_dynamics
+    if step_function is not None:
+        report["dynamics_projected_by_step_function"] = step_spec
     formats.save(edited, out, overwrite=force)
     if as_json:
         typer.echo(json.dumps({"out": out, **report}))

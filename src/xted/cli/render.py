@@ -14,7 +14,7 @@ from xted.viz.config import VideoConfig
 @app.command()
 def render(
     data: str = typer.Argument(..., help="Dataset (path or shipped name)."),
-    env: str = typer.Option(..., "--env", help="halfcheetah or walker2d."),
+    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain whose model draws the body (default: target)."),
     episode: int = typer.Option(0, "--episode", help="Episode index (negative counts from the end)."),
     out: Path = typer.Option(..., "--out", help="Video file, .mp4 or .gif (replaced if it exists)."),

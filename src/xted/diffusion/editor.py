@@ -47,6 +47,7 @@ from xted.diffusion.schedule import (
     q_sample,
 )
 from xted.envs.make import action_bounds, observation_bounds
+from xted.envs.step_function import predicted_next_observations
 from xted.envs.termination import Termination
 from xted.envs.termination import termination as termination_rule
 from xted.errors import InputError
@@ -239,7 +240,7 @@ def _rollout(prior: Prior, dynamics: Dynamics, states: np.ndarray, actions: np.n
     raw_actions = prior.normalizer.denormalize("actions", actions)
     current, out = denormalize(states[:, 0]), states.copy()  # the held state stays bit-identical
     for t in range(states.shape[1] - 1):
-        predicted = np.asarray(dynamics(current, raw_actions[:, t]), np.float64)
+        predicted = predicted_next_observations(dynamics, current, raw_actions[:, t])
         current = weight * predicted + (1.0 - weight) * denormalize(states[:, t + 1])
         out[:, t + 1] = prior.normalizer.normalize("observations", current)
     return out
