@@ -21,7 +21,7 @@ from xted.diffusion.editor import EditConfig, edit_dataset
 from xted.data import split_heldout
 from xted.diffusion.config import preset
 from xted.diffusion.prior import load_prior
-from xted.diffusion.training import train_prior
+from xted.diffusion.training import train_prior_folder
 from xted.envs import parse_domain
 from xted.envs.dynamics import dataset_dynamics_error
 
@@ -46,7 +46,7 @@ def main() -> None:
     base = {name: dataset_dynamics_error(domain, d).mae for name, d in {"heldout": heldout, **sources}.items()}
     args.out.mkdir(parents=True, exist_ok=True)
     for steps in args.steps:
-        train_prior(train_data, args.out, config, steps, checkpoint_every=max(steps // 4, 1))
+        train_prior_folder(train_data, args.out, config, steps, checkpoint_every=max(steps // 4, 1))
         with (args.out / "log.csv").open() as f:
             minutes = float(list(csv.DictReader(f))[-1]["seconds"]) / 60
         prior = load_prior(args.out)

@@ -74,13 +74,13 @@ def test_train_save_load_a_policy_without_a_simulator(tmp_path):
 
 
 def test_split_heldout_gives_the_episodes_train_prior_leaves_out(tmp_path, monkeypatch):
-    import xted.api
+    import xted.diffusion.prior
     import xted.diffusion.training
 
     target = build_dataset(lengths=(9, 10, 12, 11), seed=0)
     trained_on = []
-    monkeypatch.setattr(xted.diffusion.training, "train_prior", lambda data, out, *a, **k: trained_on.append(data))
-    monkeypatch.setattr(xted.api, "load_prior", lambda path: None)
+    monkeypatch.setattr(xted.diffusion.training, "train_prior_folder", lambda data, out, *a, **k: trained_on.append(data))
+    monkeypatch.setattr(xted.diffusion.prior, "load_prior", lambda path: None)
     xted.train_prior(target, out=tmp_path / "prior", heldout_episodes=2, preset="tiny")
     train, heldout = xted.split_heldout(target, 2)
     assert trained_on[0].fingerprint() == train.fingerprint()

@@ -675,7 +675,7 @@ def test_two_processes_needing_one_untrained_prior_train_it_once(tmp_path, monke
         Path(folder).mkdir(parents=True)
         (Path(folder) / "prior.json").write_text("{}")
 
-    monkeypatch.setattr(run, "train_prior", slow_training)
+    monkeypatch.setattr(run, "train_prior_folder", slow_training)
     monkeypatch.setattr(run, "export_prior", lambda folder, kept, provenance: None)
     first = threading.Thread(target=run.prior_of, args=(grid, prior))
     first.start()

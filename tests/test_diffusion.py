@@ -27,7 +27,7 @@ from xted.diffusion import (
     make_train_step,
     preset,
     q_sample,
-    train_prior,
+    train_prior_folder,
 )
 from xted.diffusion.config import LOSS_WEIGHTINGS
 from xted.diffusion.objective import LOSS_WEIGHTS
@@ -337,9 +337,9 @@ def test_train_prior_resume_and_refuse(tmp_path):
     data = smooth_dataset()
     config = TINY
     kw = dict(progress=False, log_every=5, checkpoint_every=5)
-    train_prior(data, tmp_path / "a", config, steps=10, **kw)
-    train_prior(data, tmp_path / "a", config, steps=20, **kw)  # resumes from step 10
-    train_prior(data, tmp_path / "b", config, steps=20, **kw)
+    train_prior_folder(data, tmp_path / "a", config, steps=10, **kw)
+    train_prior_folder(data, tmp_path / "a", config, steps=20, **kw)  # resumes from step 10
+    train_prior_folder(data, tmp_path / "b", config, steps=20, **kw)
     a, b = load_prior(tmp_path / "a"), load_prior(tmp_path / "b")
     assert a.step == b.step == 20 and a.config == config
     np.testing.assert_allclose(_flat(a.params), _flat(b.params), rtol=1e-5, atol=1e-6)
@@ -352,12 +352,12 @@ def test_train_prior_resume_and_refuse(tmp_path):
     with (tmp_path / "a" / "log.csv").open() as f:
         assert [int(r["step"]) for r in csv.DictReader(f)] == [5, 10, 15, 20]
     with pytest.raises(InputError, match=r"config.learning_rate: 0.003 -> 0.0001"):
-        train_prior(data, tmp_path / "a", dataclasses.replace(config, learning_rate=1e-4), steps=30, **kw)
+        train_prior_folder(data, tmp_path / "a", dataclasses.replace(config, learning_rate=1e-4), steps=30, **kw)
     # A prior.json written before a field existed resumes: the missing field takes its default.
     meta = json.loads((tmp_path / "a" / "prior.json").read_text())
     del meta["config"]["architecture"]
     (tmp_path / "a" / "prior.json").write_text(json.dumps(meta))
-    train_prior(data, tmp_path / "a", config, steps=25, **kw)
+    train_prior_folder(data, tmp_path / "a", config, steps=25, **kw)
     assert load_prior(tmp_path / "a").step == 25
     with pytest.raises(InputError, match="no prior.json"):
         load_prior(tmp_path / "missing")

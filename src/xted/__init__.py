@@ -11,7 +11,7 @@ from xted.lazy import lazy_exports
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "load_dataset": "api", "save_dataset": "api", "train_prior": "api", "load_prior": "api", "measure_edit": "api",
+    "load_dataset": "api", "save_dataset": "api", "train_prior": "api", "load_prior": "diffusion.prior", "measure_edit": "api",
     "train_policy": "api", "load_policy": "api",
     "Dataset": "data", "split_heldout": "data", "EditConfig": "diffusion", "PriorConfig": "diffusion", "Prior": "diffusion",
     "Policy": "rl.policy_io", "edit_source": "pipelines.edit",

@@ -55,28 +55,14 @@ def train_prior(target: Dataset | str | Path, out: str | Path, preset: str = "cp
     from xted.fields import known_fields
     from xted.diffusion.config import PriorConfig
     from xted.diffusion.config import preset as make_preset
-    from xted.diffusion.training import train_prior as train
+    from xted.diffusion.prior import load_prior
+    from xted.diffusion.training import train_prior_folder
 
     data = load_dataset(target) if isinstance(target, (str, Path)) else target
     data, _ = split_heldout(data, heldout_episodes)
     config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards, seed=seed,
                          **known_fields(PriorConfig, fields))
-    return load_prior(train(data, out, config, steps, progress=progress))
-
-
-def load_prior(source: str | Path):
-    """A trained prior from its folder (``xted train --out``, or an exported copy), or a prior
-    shipped with xted by name (``halfcheetah-medium-replay-cpu``, ``walker2d-medium-replay-cpu``)."""
-    from xted.data import shipped
-    from xted.diffusion.prior import load_prior as load
-
-    path = Path(source)
-    if not path.exists() and isinstance(source, str) and (shipped.prior_dir(source) / "prior.json").is_file():
-        path = shipped.prior_dir(source)
-    if not path.exists():
-        raise InputError(f"{source!r}: no prior folder or shipped prior of that name "
-                         f"(shipped priors: {', '.join(shipped.prior_names())})")
-    return load(path)
+    return load_prior(train_prior_folder(data, out, config, steps, progress=progress))
 
 
 def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None,

@@ -96,7 +96,7 @@ def edit_plan(
     """Before any learner, no simulator needed: per source, the share of windows beyond the prior's
     support, its mismatch against the target model's resolution, the kappa to edit at, and whether
     the guarded edit is expected to help or keep the source as it is."""
-    from xted.api import load_prior
+    from xted.diffusion.prior import load_prior
     from xted.data import check_dimensions, load
     from xted.diffusion.config import EditConfig
     from xted.diffusion.diagnosis import diagnose_edit

@@ -39,7 +39,7 @@ def train(
     from xted.data import load, split_heldout
     from xted.diffusion.checkpoint import trained_steps
     from xted.diffusion.config import preset as make_preset
-    from xted.diffusion.training import train_prior
+    from xted.diffusion.training import train_prior_folder
 
     data, _ = split_heldout(load(target), heldout_episodes)
     config = make_preset(preset, data.observation_dim, data.action_dim, rewards=data.has_rewards)
@@ -47,7 +47,7 @@ def train(
     if force:
         discard_run(out, ("prior.json",))
     steps_before = trained_steps(out)
-    train_prior(data, out, config, steps, checkpoint_every=checkpoint_every)
+    train_prior_folder(data, out, config, steps, checkpoint_every=checkpoint_every)
     if steps_before >= steps:
         typer.echo(f"prior already trained to step {steps_before} in {out} (--steps {steps}); nothing to do")
     else:
@@ -85,7 +85,7 @@ def edit(
 ) -> None:
     """Edit source trajectories toward the prior's (target) dynamics, guarded (docs/editing.md): an edited
     window is kept only where it is valid in the target and more consistent with it than the source's."""
-    from xted.api import load_prior
+    from xted.diffusion.prior import load_prior
     from xted.data import check_dimensions, formats, load
     from xted.envs import check_same_env, dataset_env
     from xted.envs.step_function import is_step_function_spec, load_step_function
@@ -163,7 +163,7 @@ def demo(
     from xted.diffusion.config import PriorConfig
     from xted.diffusion.editor import edit_dataset
     from xted.diffusion.prior import load_prior
-    from xted.diffusion.training import train_prior
+    from xted.diffusion.training import train_prior_folder
     from xted.envs import PAPER_GAPS, parse_domain
 
     if gap not in PAPER_GAPS["halfcheetah"]:
@@ -175,7 +175,7 @@ def demo(
         shipped_prior = load_prior(prior_folder)
         config = PriorConfig.from_dict({**shipped_prior.config.to_dict(), "seed": seed})
         prior_folder = out / "prior"
-        train_prior(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], prior_folder, config, steps or shipped_prior.step)
+        train_prior_folder(split_heldout(target, DEMO_HELDOUT_EPISODES)[0], prior_folder, config, steps or shipped_prior.step)
     prior = load_prior(prior_folder)
     edited, report = edit_dataset(prior, source, EditConfig(seed=seed), progress=True)
     formats.save(edited, edited_path)

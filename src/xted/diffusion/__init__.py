@@ -16,7 +16,7 @@ _EXPORTS = {
     "PriorConfig": "config", "preset": "config", "presets": "config",
     "TrainState": "objective", "loss_fn": "objective", "make_train_step": "objective", "train_step": "objective",
     "Prior": "prior", "load_prior": "prior", "export_prior": "prior",
-    "train_prior": "training",
+    "train_prior_folder": "training",
 }
 
 __all__ = sorted(_EXPORTS)

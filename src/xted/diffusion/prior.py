@@ -16,7 +16,7 @@ import numpy as np
 
 from xted.atomic import atomic_path
 from xted.fields import known_fields
-from xted.data import Dataset, Normalizer
+from xted.data import Dataset, Normalizer, shipped
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser
 from xted.diffusion.guard import TargetModel, fit_target_model
@@ -101,9 +101,16 @@ def export_prior(prior_dir: str | Path, dest: str | Path, provenance: dict[str, 
     return dest
 
 
-def load_prior(out_dir: str | Path) -> Prior:
-    """The EMA parameters (latest checkpoint, or an exported prior) with the config and normaliser."""
-    out_dir = Path(out_dir)
+def load_prior(source: str | Path) -> Prior:
+    """A trained prior: its EMA parameters (latest checkpoint, or an exported prior) with the config
+    and normaliser, from its folder (``xted train --out``, or an exported copy) or the name of a
+    prior shipped with xted (``halfcheetah-medium-replay-cpu``, ``walker2d-medium-replay-cpu``)."""
+    out_dir = Path(source)
+    if not out_dir.exists() and isinstance(source, str) and (shipped.prior_dir(source) / "prior.json").is_file():
+        out_dir = shipped.prior_dir(source)
+    if not out_dir.exists():
+        raise InputError(f"{source!r}: no prior folder or shipped prior of that name "
+                         f"(shipped priors: {', '.join(shipped.prior_names())})")
     meta_path = out_dir / "prior.json"
     if not meta_path.exists():
         raise InputError(f"{out_dir}: no prior.json (not a prior folder)")

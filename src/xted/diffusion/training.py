@@ -61,7 +61,7 @@ def training_windows(dataset: Dataset, normalizer: Normalizer, config: PriorConf
     return sampler, info
 
 
-def train_prior(
+def train_prior_folder(
     target_dataset: Dataset,
     out_dir: str | Path,
     config: PriorConfig,
@@ -78,7 +78,7 @@ def train_prior(
     out_dir = Path(out_dir)
     for name, value in (("steps", steps), ("log_every", log_every), ("checkpoint_every", checkpoint_every)):
         if int(value) != value or value < 1:
-            raise InputError(f"train_prior: {name} must be a positive integer, got {value}")
+            raise InputError(f"train_prior_folder: {name} must be a positive integer, got {value}")
     check_dimensions(target_dataset, (config.state_dim, config.action_dim), "the target data",
                      "the config (state_dim, action_dim)")
     if config.use_reward or config.return_condition:

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from xted.data import Dataset, load, save, split_heldout
 from xted.diffusion.prior import export_prior
-from xted.diffusion.training import train_prior
+from xted.diffusion.training import train_prior_folder
 from xted.pipelines.bench import cells, claims, store
 from xted.pipelines.bench.config import BenchConfig, RayConfig
 from xted.pipelines.bench.grid import DataCell, Grid, LearnerCell, PriorCell, plan
@@ -136,7 +136,7 @@ def _train_prior(grid: Grid, cell: PriorCell, progress: bool) -> bool:
             return False
     training, _ = split_heldout(grid.datasets[cell.source], cell.heldout_episodes)
     began = time.perf_counter()
-    train_prior(training, folder, cell.config, cell.steps, progress=progress)
+    train_prior_folder(training, folder, cell.config, cell.steps, progress=progress)
     seconds = time.perf_counter() - began
     if not kept.exists():
         export_prior(folder, kept, provenance={"bench_prior_cell": cell.name, "inputs": cell.inputs})
