@@ -275,17 +275,8 @@ def edit_dataset(
     """
     began = time.perf_counter()
     cfg = prior.config
-    check_dimensions(source, (cfg.state_dim, cfg.action_dim), "the source data", "the prior's training data")
-    if cfg.use_reward:
-        source.require_rewards("editing with this prior's reward stream",
-                               "edit it with a reward-free prior (trained on reward-free target data)")
     k = config.noise_steps(cfg.num_timesteps)
-    guard_model = target_model or prior.target_model
-    if config.guard and k > 0 and guard_model is None:
-        raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
-                         "none (trained before xted fitted one): give the target data (xted edit --target, "
-                         "Prior.edit(target=...)), or edit without the guard (--no-guard, guard=False: the paper's "
-                         "plain edit)")
+    guard_model = _checked_edit(prior, source, config, k, target_model or prior.target_model)
     metadata = {
         **source.metadata,
         "edit": {"config": dataclasses.asdict(config), "prior": prior.path, "prior_step": prior.step, "noise_steps": k,
@@ -309,49 +300,11 @@ def edit_dataset(
         "action": source.actions[steps],
         "reward": source.rewards[steps][:, None],
     }
-    fields = {"state": "observations", "action": "actions", "reward": "rewards"}
-    streams = cfg.denoiser.streams
-    norm = {s: prior.normalizer.normalize(fields[s], raw[s]).astype(np.float32) for s in streams}
-
-    n_windows = len(tiling.window_rows)
-    edited = {s: np.empty((n_windows, cfg.horizon, norm[s].shape[-1]), np.float32) for s in streams}
-    edit = _editor(prior, config)
-    seed_key = jax.random.key(config.seed)
-    table = tiling.schedule(min(config.batch_size, max(int(tiling.window_episode.max(initial=0)) + 1, 1)))
-    for ids in tqdm(table, disable=not progress, unit="round", desc="edit (rounds of windows)"):
-        live = ids >= 0
-        x = {s: norm[s][tiling.window_rows[np.where(live, ids, 0)]] for s in streams}
-        previous, carried = tiling.window_previous[ids], tiling.window_carry_position[ids]
-        stitched = live & (previous >= 0)
-        for s in streams:
-            x[s][stitched, 0] = edited[s][previous[stitched], carried[stitched]]
-        keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
-        out = edit(x, keys, stitched)
-        if dynamics is not None:
-            out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]),
-                                            config.dynamics_weight)}
-        for s in streams:
-            edited[s][ids[live]] = np.asarray(out[s])[live]
-
-    def transitions(stream: str, shift: int) -> np.ndarray:
-        window, position = tiling.transition_window, tiling.transition_position + shift
-        rows = tiling.window_rows[window, position]
-        values = edited[stream][window, position]
-        denormalize = functools.partial(prior.normalizer.denormalize, fields[stream])
-        return (raw[stream][rows] + (denormalize(values) - denormalize(norm[stream][rows]))).astype(np.float32)
-
+    norm = {s: prior.normalizer.normalize(_FIELDS[s], raw[s]).astype(np.float32) for s in cfg.denoiser.streams}
+    edited_windows = _stitched_edit(prior, config, tiling, norm, dynamics, progress)
+    edited_t = _edited_transitions(prior, tiling, raw, norm, edited_windows)
+    clipped = _clip_to_observation_space(prior, edited_t)
     t = tiling.transition_steps
-    edited_t = {"observations": transitions("state", 0), "next_observations": transitions("state", 1),
-                "actions": transitions("action", 0)}
-    if cfg.use_reward:
-        edited_t["rewards"] = transitions("reward", 0)[:, 0]
-    bounds = observation_bounds(prior.env)  # walker2d observes velocities within +-10
-    clipped = 0
-    if bounds is not None and len(bounds[0]) == cfg.state_dim:  # an edit may leave the observation space
-        clipped = int(np.any((edited_t["next_observations"] < bounds[0]) | (edited_t["next_observations"] > bounds[1]),
-                             axis=1).sum())
-        for name in ("observations", "next_observations"):
-            edited_t[name] = np.clip(edited_t[name], *bounds).astype(np.float32)
     keep, drop = np.ones(len(t), bool), np.zeros(len(t), bool)
     report: dict[str, Any] = {}
     if config.guard:
@@ -377,6 +330,84 @@ def edit_dataset(
         "seconds": time.perf_counter() - began,
     }
     return result, report
+
+
+_FIELDS = {"state": "observations", "action": "actions", "reward": "rewards"}  # a stream's dataset field
+
+
+def _checked_edit(prior: Prior, source: Dataset, config: EditConfig, noise_steps: int,
+                  guard_model: TargetModel | None) -> TargetModel | None:
+    """InputError where ``source`` cannot be edited with ``prior`` under ``config``; the guard's model."""
+    cfg = prior.config
+    check_dimensions(source, (cfg.state_dim, cfg.action_dim), "the source data", "the prior's training data")
+    if cfg.use_reward:
+        source.require_rewards("editing with this prior's reward stream",
+                               "edit it with a reward-free prior (trained on reward-free target data)")
+    if config.guard and noise_steps > 0 and guard_model is None:
+        raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
+                         "none (trained before xted fitted one): give the target data (xted edit --target, "
+                         "Prior.edit(target=...)), or edit without the guard (--no-guard, guard=False: the paper's "
+                         "plain edit)")
+    return guard_model
+
+
+def _stitched_edit(prior: Prior, config: EditConfig, tiling: EpisodeTiling, norm: dict[str, np.ndarray],
+                   dynamics: Dynamics | None, progress: bool) -> dict[str, np.ndarray]:
+    """Every window edited, ``[W, H, d]`` per stream (normalised): in rounds of windows, each starting
+    from the edited state its previous window of the episode ends on (the stitching), each projected
+    onto ``dynamics`` where given."""
+    cfg, streams = prior.config, prior.config.denoiser.streams
+    n_windows = len(tiling.window_rows)
+    edited = {s: np.empty((n_windows, cfg.horizon, norm[s].shape[-1]), np.float32) for s in streams}
+    edit = _editor(prior, config)
+    seed_key = jax.random.key(config.seed)
+    table = tiling.schedule(min(config.batch_size, max(int(tiling.window_episode.max(initial=0)) + 1, 1)))
+    for ids in tqdm(table, disable=not progress, unit="round", desc="edit (rounds of windows)"):
+        live = ids >= 0
+        x = {s: norm[s][tiling.window_rows[np.where(live, ids, 0)]] for s in streams}
+        previous, carried = tiling.window_previous[ids], tiling.window_carry_position[ids]
+        stitched = live & (previous >= 0)
+        for s in streams:
+            x[s][stitched, 0] = edited[s][previous[stitched], carried[stitched]]
+        keys = jax.vmap(jax.random.fold_in, (None, 0))(seed_key, jnp.asarray(np.where(live, ids, n_windows), jnp.uint32))
+        out = edit(x, keys, stitched)
+        if dynamics is not None:
+            out = {**out, "state": _rollout(prior, dynamics, np.asarray(out["state"]), np.asarray(out["action"]),
+                                            config.dynamics_weight)}
+        for s in streams:
+            edited[s][ids[live]] = np.asarray(out[s])[live]
+    return edited
+
+
+def _edited_transitions(prior: Prior, tiling: EpisodeTiling, raw: dict[str, np.ndarray], norm: dict[str, np.ndarray],
+                        edited: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The edited windows as one value per source transition (raw units): the source's value plus what
+    the edit changed, so a stream the edit left alone comes back bit-identical."""
+    def transitions(stream: str, shift: int) -> np.ndarray:
+        window, position = tiling.transition_window, tiling.transition_position + shift
+        rows = tiling.window_rows[window, position]
+        values = edited[stream][window, position]
+        denormalize = functools.partial(prior.normalizer.denormalize, _FIELDS[stream])
+        return (raw[stream][rows] + (denormalize(values) - denormalize(norm[stream][rows]))).astype(np.float32)
+
+    edited_t = {"observations": transitions("state", 0), "next_observations": transitions("state", 1),
+                "actions": transitions("action", 0)}
+    if prior.config.use_reward:
+        edited_t["rewards"] = transitions("reward", 0)[:, 0]
+    return edited_t
+
+
+def _clip_to_observation_space(prior: Prior, edited_t: dict[str, np.ndarray]) -> int:
+    """Clip edited states into what the prior's target env can observe (walker2d's velocities within
+    +-10), in place; returns how many edited next states lay outside it."""
+    bounds = observation_bounds(prior.env)
+    if bounds is None or len(bounds[0]) != prior.config.state_dim:
+        return 0
+    clipped = int(np.any((edited_t["next_observations"] < bounds[0]) | (edited_t["next_observations"] > bounds[1]),
+                         axis=1).sum())
+    for name in ("observations", "next_observations"):
+        edited_t[name] = np.clip(edited_t[name], *bounds).astype(np.float32)
+    return clipped
 
 
 def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling: EpisodeTiling,
