@@ -45,19 +45,28 @@ def _command_section(path: str, command) -> list[str]:
     return [*lines, ""]
 
 
-def _walk(path: str, command) -> list[str]:
-    """Sections of ``command`` and, for a group, of its commands (Typer's own click objects)."""
+def _commands(path: str, command) -> list[tuple[str, object]]:
+    """``(path, command)`` of every command under ``command`` in name order (Typer's click objects)."""
     if hasattr(command, "commands"):
-        lines = []
-        for name in sorted(command.commands):
-            lines += _walk(f"{path} {name}", command.commands[name])
-        return lines
-    return _command_section(path, command)
+        return [pair for name in sorted(command.commands) for pair in _commands(f"{path} {name}", command.commands[name])]
+    return [(path, command)]
+
+
+def _overview(commands: list[tuple[str, object]]) -> list[str]:
+    """One row per command: its name, linked to its section, and the first sentence of its help."""
+    rows = ["| command | what it does |", "|---|---|"]
+    for path, command in commands:
+        first = _cell(command.help or "").split(". ")[0].rstrip(".")
+        anchor = path.replace(" ", "-")
+        rows.append(f"| [`{path}`](#{anchor}) | {first} |")
+    return [*rows, ""]
 
 
 def reference() -> str:
-    """The whole reference as markdown, one section per command in name order."""
-    return "\n".join([HEADER, *_walk("xted", typer.main.get_command(app))]).rstrip() + "\n"
+    """The whole reference as markdown: an overview, then one section per command in name order."""
+    commands = _commands("xted", typer.main.get_command(app))
+    sections = [line for path, command in commands for line in _command_section(path, command)]
+    return "\n".join([HEADER, *_overview(commands), *sections]).rstrip() + "\n"
 
 
 if __name__ == "__main__":
