@@ -7,7 +7,7 @@ matches its recorded velocity (1 for a physical trajectory), and the share of ac
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import numpy as np
 
@@ -18,10 +18,11 @@ PITCH, FORWARD_VELOCITY, PITCH_VELOCITY = 1, 8, 10  # observation indices
 
 
 def main() -> None:
-    if len(sys.argv) < 2:
-        raise SystemExit(__doc__)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("datasets", nargs="+", help="halfcheetah dataset paths or shipped names")
+    args = parser.parse_args()
     print(f"{'dataset':>48s}  fwd velocity  pitch diff/velocity corr  actions outside [-1, 1]")
-    for name in sys.argv[1:]:
+    for name in args.datasets:
         data = load(name)
         following = data.require_next_observations()
         pitch_rate = (following[:, PITCH] - data.observations[:, PITCH]) / DT
