@@ -79,7 +79,7 @@ def test_td3bc_delayed_actor_step_stays_a_branch_under_vmap():
 
 def test_evaluation_of_a_zero_policy_matches_a_manual_rollout():
     domain, config = parse_domain("halfcheetah"), BCConfig(hidden=(8,))
-    actor = init_bc(jax.random.PRNGKey(0), 17, 6, config).actor
+    actor = init_bc(jax.random.PRNGKey(0), 17, 6, config, 0).actor
     actor = actor.replace(params=jax.tree.map(jnp.zeros_like, actor.params))  # tanh(0): zero actions
     result = evaluate(seed_policy(config, actor, np.ones(17), np.full(17, 2.0)), domain, episodes=1, seed=7)
     env = make(domain)

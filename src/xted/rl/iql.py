@@ -95,8 +95,9 @@ def critic_loss(critic_params, state: IQLState, batch, config: IQLConfig):
     return loss, {"critic_loss": loss, "q": q.mean()}
 
 
-def iql_step(state: IQLState, batch, config: IQLConfig, actor_penalty=None):
-    """One IQL step: value, then actor (on the new value), then critic, then the target critic."""
+def iql_step(state: IQLState, batch, config: IQLConfig, step=None, actor_penalty=None):
+    """One IQL step: value, then actor (on the new value), then critic, then the target critic.
+    ``step`` schedules nothing here (the actor's learning-rate decay counts its own steps)."""
     grads, info = jax.grad(value_loss, has_aux=True)(state.value.params, state, batch, config)
     state = state.replace(value=state.value.apply_gradients(grads=grads))
     grads, actor_info = jax.grad(actor_loss, has_aux=True)(state.actor.params, state, batch, config, actor_penalty)

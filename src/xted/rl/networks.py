@@ -8,6 +8,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
+from xted.errors import InputError
 from xted.nn import MLP
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
@@ -91,3 +92,9 @@ def sample_tanh_gaussian(rng, mean, log_std):
     # log|d tanh(u)/du| = 2 (log 2 - u - softplus(-2u)), numerically stable
     log_prob -= jnp.sum(2.0 * (jnp.log(2.0) - pre_tanh - jax.nn.softplus(-2.0 * pre_tanh)), axis=-1)
     return action, log_prob
+
+
+def require_no_actor_penalty(actor_penalty, learner: str) -> None:
+    """Refuse an actor penalty (OTDF's behaviour term) for a learner whose actor loss takes none."""
+    if actor_penalty is not None:
+        raise InputError(f"{learner} takes no actor penalty (OTDF's behaviour term regularises IQL's actor)")

@@ -46,20 +46,18 @@ OBS_STD_EPS = 1e-3
 
 
 class Algorithm(NamedTuple):
-    init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state
-    update: Callable[..., Any]  # (state, batch, config, step[, actor_penalty]) -> (state, info); step: the update's index
+    """An offline learner: every one has the same signatures."""
+
+    init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state; steps: the run's length
+    update: Callable[..., Any]  # (state, batch, config, step, actor_penalty=None) -> (state, info); step: its index
     act: Callable[..., Any]  # (actor TrainState, standardised obs) -> actions
     policy_kind: str  # the actor's kind in a saved policy (xted.rl.policy_io)
 
 
 _ALGORITHMS: dict[type, Algorithm] = {
-    IQLConfig: Algorithm(init_iql, lambda state, batch, config, step, actor_penalty=None: iql_step(
-        state, batch, config, actor_penalty), iql_act, "gaussian"),
-    TD3BCConfig: Algorithm(lambda rng, o, a, config, steps: init_td3bc(rng, o, a, config), td3bc_update,
-                           deterministic_act, "deterministic"),
-    BCConfig: Algorithm(lambda rng, o, a, config, steps: init_bc(rng, o, a, config),
-                        lambda state, batch, config, step: bc_update(state, batch), deterministic_act,
-                        "deterministic"),
+    IQLConfig: Algorithm(init_iql, iql_step, iql_act, "gaussian"),
+    TD3BCConfig: Algorithm(init_td3bc, td3bc_update, deterministic_act, "deterministic"),
+    BCConfig: Algorithm(init_bc, bc_update, deterministic_act, "deterministic"),
 }
 
 

@@ -21,7 +21,7 @@ import optax
 from flax.training.train_state import TrainState
 
 from xted.rl.config import TD3BCConfig
-from xted.rl.networks import Critic, DeterministicPolicy
+from xted.rl.networks import Critic, DeterministicPolicy, require_no_actor_penalty
 
 
 @flax.struct.dataclass
@@ -33,7 +33,8 @@ class TD3BCState:
     rng: jax.Array
 
 
-def init_td3bc(rng, obs_dim: int, action_dim: int, config: TD3BCConfig) -> TD3BCState:
+def init_td3bc(rng, obs_dim: int, action_dim: int, config: TD3BCConfig, steps: int) -> TD3BCState:
+    """Fresh networks (``steps``, the run's length, schedules nothing here: the learning rates are constant)."""
     actor_key, critic_key, rng = jax.random.split(rng, 3)
     obs, act = jnp.zeros((1, obs_dim)), jnp.zeros((1, action_dim))
     actor_def, critic_def = DeterministicPolicy(config.hidden, action_dim), Critic(config.hidden)
@@ -68,13 +69,14 @@ def actor_loss(actor_params, state: TD3BCState, batch, config: TD3BCConfig):
 
 
 @partial(jax.jit, static_argnames="config")
-def td3bc_update(state: TD3BCState, batch, config: TD3BCConfig, step=None):
+def td3bc_update(state: TD3BCState, batch, config: TD3BCConfig, step=None, actor_penalty=None):
     """One critic step; every ``policy_delay``-th also an actor step and the target updates.
 
     ``step`` (default: the critic's own step count) is the index that schedules the actor step.
 
     On critic-only steps the actor entries of the returned info are NaN (not computed).
     """
+    require_no_actor_penalty(actor_penalty, "TD3+BC")
     rng, noise_key = jax.random.split(state.rng)
     grads, info = jax.grad(critic_loss, has_aux=True)(state.critic.params, state, batch, noise_key, config)
     state = state.replace(critic=state.critic.apply_gradients(grads=grads), rng=rng)
