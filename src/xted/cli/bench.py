@@ -104,7 +104,9 @@ def grid_config(
                                   help="Training steps of the Tgt SER column's transition diffusion model."),
     transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions", min=1,
                                               help="Use only the first N transitions of every dataset."),
-    store: Path = typer.Option(Path(DEFAULTS.store), "--store", help="Folder of the cells' result JSONs."),
+    store: Path = typer.Option(Path(DEFAULTS.store), "--store",
+                               help="Folder of the cells' result JSONs, relative to the current folder (the default is "
+                               "the store committed in a checkout of xted, when run from its root)."),
     cache: Path = typer.Option(Path(DEFAULTS.cache), "--cache", help="Folder of made datasets (edits, oracles)."),
 ) -> BenchConfig:
     """The grid both commands name, from its options (checked by BenchConfig)."""

@@ -108,9 +108,6 @@ def iql_step(state: IQLState, batch, config: IQLConfig, step=None, actor_penalty
     return state.replace(critic=critic, target_critic_params=target), {**info, **actor_info, **critic_info}
 
 
-iql_update = jax.jit(iql_step, static_argnames="config")
-
-
 def iql_act(actor: TrainState, obs):
     """The mean action."""
     return actor.apply_fn({"params": actor.params}, obs)[0]

@@ -44,7 +44,7 @@ class BenchConfig:
     prior_preset: str = "cpu"
     prior_overrides: tuple[str, ...] = ()
     ser_steps: int = 20_000
-    store: str = "benchmarks/results/bench"
+    store: str = "benchmarks/results/bench"  # relative to the working folder: a checkout's committed store
     cache: str = "runs/bench-cache"
 
     def __post_init__(self) -> None:
