@@ -124,3 +124,16 @@ def test_help_reads_as_plain_text(path):
     assert result.exit_code == 0, result.output
     assert "<bool>" not in result.output
     assert "``" not in result.output and ":func:" not in result.output
+
+
+def test_one_default_for_offline_training_steps():
+    import inspect
+
+    from xted.api import train_policy
+    from xted.pipelines.bench.config import BenchConfig
+    from xted.rl.config import OFFLINE_STEPS
+
+    assert _options("policy")["--steps"] is not None
+    steps_option = next(p for p in _command("policy").params if p.name == "steps")
+    assert steps_option.default == inspect.signature(train_policy).parameters["steps"].default == BenchConfig().steps
+    assert BenchConfig().steps == OFFLINE_STEPS

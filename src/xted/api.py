@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 from xted.data import Dataset
 from xted.errors import InputError
+from xted.rl.config import OFFLINE_STEPS
 
 if TYPE_CHECKING:
     from xted.envs.step_function import StepFunction
@@ -86,7 +87,7 @@ def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None
 
 
 def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Dataset | str | Path] = (),
-                 steps: int = 30_000, seed: int = 0, env: str | None = None, gap: str | None = None,
+                 steps: int = OFFLINE_STEPS, seed: int = 0, env: str | None = None, gap: str | None = None,
                  eval_every: int = 10_000, eval_episodes: int = 10, progress: bool = True, **fields: Any):
     """Train an offline policy (``iql``, ``td3bc``, ``bc``, ``dara``, ``igdf`` or ``otdf``) on ``target`` + ``sources``
     and return it (a :class:`~xted.rl.policy_io.Policy`: ``act``, ``save``, ``scores``).

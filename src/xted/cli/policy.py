@@ -13,6 +13,7 @@ from xted.cli.main import app
 from xted.cli.options import fields_epilog, parse_seeds
 from xted.fields import apply_overrides
 from xted.errors import InputError
+from xted.rl.config import OFFLINE_STEPS
 from xted.resume import discard_run
 from xted.rl.config import OFFLINE_ALGORITHMS
 
@@ -29,7 +30,7 @@ def policy(
         None, "--env", help="halfcheetah, walker2d or hopper, to evaluate in (default: the target data's recorded env); "
         "none: train without a simulator (needs --save)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: the target domain)."),
-    steps: int = typer.Option(100_000, "--steps", min=1, help="Gradient steps per seed."),
+    steps: int = typer.Option(OFFLINE_STEPS, "--steps", min=1, help="Gradient steps per seed."),
     seeds: str = typer.Option("0", "--seeds", help="Comma-separated seeds, trained together."),
     eval_episodes: int = typer.Option(10, "--eval-episodes", min=1, help="Episodes per evaluation and seed."),
     eval_every: int = typer.Option(10_000, "--eval-every", min=1, help="Steps between evaluations (and at the end)."),

@@ -11,6 +11,7 @@ from xted.fields import check_fields, setting
 from xted.errors import InputError
 
 ONLINE_ALGORITHM_NAMES = ("sac", "td3")  # xted.rl.online.ONLINE_ALGORITHMS
+OFFLINE_STEPS = 30_000  # gradient updates of an offline run: xted.train_policy, xted policy and the bench
 
 
 @dataclasses.dataclass(frozen=True)

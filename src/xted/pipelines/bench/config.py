@@ -7,6 +7,7 @@ import dataclasses
 from xted.analysis.config import ProxyConfig
 from xted.errors import InputError
 from xted.pipelines.bench.columns import COLUMNS, TABLE_COLUMNS
+from xted.rl.config import OFFLINE_STEPS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,7 +31,7 @@ class BenchConfig:
     columns: tuple[str, ...] = TABLE_COLUMNS
     algos: tuple[str, ...] = ("iql",)
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
-    steps: int = 30_000
+    steps: int = OFFLINE_STEPS
     eval_every: int = 10_000
     eval_episodes: int = 10
     kappa: float = 0.5
