@@ -729,3 +729,26 @@ def test_prune_lists_and_removes_the_stored_files_of_no_cell_of_the_grid(tmp_pat
     assert main(["bench", "prune", *options, "--remove"]) == 0
     assert "1 stored files match no cell of this grid; removed" in capsys.readouterr().out
     assert sorted(Path(config.store).glob("*/*.json")) == kept
+
+
+def test_priors_only_trains_the_grid_s_priors_and_nothing_else(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    config = tiny_config(tmp_path, targets=("medium",), gaps=("thigh", "gravity"), columns=("Tgt", "Tgt+Edited"),
+                         seeds=(0,), transitions=2500, prior_steps=3)
+    trained = []
+
+    def training(data, folder, prior_config, steps, progress=False):
+        trained.append(folder)
+        Path(folder).mkdir(parents=True)
+        (Path(folder) / "prior.json").write_text("{}")
+
+    monkeypatch.setattr(run, "train_prior_folder", training)
+    monkeypatch.setattr(run, "export_prior", lambda folder, kept, provenance: None)
+    names = run.run_bench(config, progress=False, echo=lambda line: None, priors_only=True)
+    (prior,) = {cell.name for cell in plan(config).cells() if isinstance(cell, run.PriorCell)}
+    assert names == [prior] and len(trained) == 1
+    assert len(run.pending(plan(config))) == 3  # no learner trained (Tgt; Tgt+Edited per gap)
+    assert all(store.read_result(config.store, cell) is None for cell in plan(config).cells()
+               if isinstance(cell, run.DataCell))  # and no edit made
+    assert run.run_bench(config, progress=False, echo=lambda line: None, priors_only=True) == []

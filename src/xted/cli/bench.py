@@ -156,6 +156,8 @@ def run_grid(
     gpus_per_task: Optional[float] = typer.Option(
         None, "--gpus-per-task", min=0.0, max=64.0,
         help="With --executor ray: GPUs each edit and learner task reserves (default 1 where the cluster has GPUs)."),
+    priors_only: bool = typer.Option(False, "--priors-only",
+                                     help="Train only the priors the grid's edits read (here), and stop."),
 ) -> None:
     """Compute every cell of the grid (env x target x gap x column x algo x seed) whose result is not
     stored under its current key, or was trained on data its data cell no longer records."""
@@ -163,8 +165,10 @@ def run_grid(
 
     ray = _ray_config(executor, address=address, retries=retries, cpus_per_task=cpus_per_task,
                       gpus_per_task=gpus_per_task)
+    if priors_only and ray is not None:
+        raise InputError("--priors-only trains the priors here: leave out --executor ray")
     try:
-        computed = run_bench(config, echo=typer.echo, ray=ray)
+        computed = run_bench(config, echo=typer.echo, ray=ray, priors_only=priors_only)
     except CellsFailed as err:
         typer.echo(f"bench: {len(err.computed)} cells computed; results in {config.store}")
         for name, why in err.failed:

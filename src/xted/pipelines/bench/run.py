@@ -240,16 +240,27 @@ def _run_group(grid: Grid, group: list[LearnerCell], made: dict[str, Dataset], w
     return computed + store_records(grid.config, group, group_records(group, training, work, progress))
 
 
+def train_priors(grid: Grid, progress: bool, echo: Callable[[str], None]) -> list[str]:
+    """Train (or restore) every prior the grid's edits read, and nothing else; the names of those
+    trained now. Priors take the longest of any cell: training them ahead lets a later run, here or
+    in a fresh checkout (their exported copies are committed), start with its edits."""
+    priors = [cell for cell in grid.cells() if isinstance(cell, PriorCell)]
+    echo(f"bench: {len(priors)} priors read by the grid's edits")
+    return [cell.name for cell in priors if prior_of(grid, cell, progress)]
+
+
 def run_bench(config: BenchConfig, progress: bool = True, echo: Callable[[str], None] = print,
-              ray: RayConfig | None = None, work: Work = Work()) -> list[str]:
+              ray: RayConfig | None = None, work: Work = Work(), priors_only: bool = False) -> list[str]:
     """Compute every missing cell of ``config``'s grid, here or (``ray``) as Ray tasks; returns the
     names of the cells computed. Cells that fail on Ray raise ``CellsFailed`` once every other
-    cell's result is stored."""
+    cell's result is stored. ``priors_only``: train the grid's priors here and stop."""
     if ray is not None:
         from xted.pipelines.bench import ray_executor
 
         ray_executor.import_ray()  # refuse a missing Ray before planning
     grid = plan(config)
+    if priors_only:
+        return train_priors(grid, progress, echo)
     groups = pending(grid)
     todo = sum(len(group) for group in groups)
     where = "" if ray is None else " as Ray tasks (a task is a group of seeds, as locally)"
