@@ -454,7 +454,10 @@ def test_report_cost_shares_each_group_s_time_among_its_seeds_and_counts_a_share
         ("learner", 2, 0), ("learner", 2, 0), ("learner", 2, 2), ("edit", 1, 0)]
     assert [row["hours"] for row in cost] == pytest.approx([1.0, 2.0, 0.0, 0.5])  # 2 seeds of a 1 h group: 1 h
     assert main(["bench", "report", *options, "--cost"]) == 0
-    assert "| Total | | 7 | 3.50 | 2 |" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "| Total | | 7 | 3.50 | 2 |" in printed
+    assert "| Tgt | 2 | 1.00 | 0.00 | 0.500 |" in printed and "| Tgt+Edited | 2 | 2.00 | 0.50 | 1.250 |" in printed
+    assert "| Tgt+Edited DARA | 2 | 0.00 | 0.00 | - |" in printed
 
 
 def test_report_curves_average_the_steps_every_seed_evaluated(tmp_path, capsys):

@@ -207,7 +207,7 @@ def cost_rows(grid: Grid) -> list[dict]:
             continue
         row = groups.setdefault(cell.group, {"kind": "learner", "group": " ".join(str(part) for part in cell.group
                                                                                   if part is not None),
-                                             "cells": 0, "hours": 0.0, "unrecorded": 0})
+                                             "column": cell.column, "cells": 0, "hours": 0.0, "unrecorded": 0})
         row["cells"] += 1
         if "group_seconds" in result:
             row["hours"] += result["group_seconds"] / result["group_size"] / 3600
@@ -219,16 +219,26 @@ def cost_rows(grid: Grid) -> list[dict]:
                 record = store.read_result(grid.config.store, made_cell)
                 if record is not None:
                     made[made_cell.key] = {"kind": made_cell.kind, "group": f"{made_cell.env} {made_cell.name}",
-                                           "cells": 1, "hours": record.get("seconds", 0.0) / 3600,
+                                           "column": cell.column, "cells": 1, "hours": record.get("seconds", 0.0) / 3600,
                                            "unrecorded": int("seconds" not in record)}
     return [*groups.values(), *made.values()]
 
 
 def cost_markdown(costs: list[dict]) -> str:
-    """The cost block: one line per group and a total."""
+    """The cost block: one line per group and a total; then per column, its learners' hours and those
+    of the data made for it (an edit read by several columns counts under the first), per timed cell."""
     out = ["| cost: group | kind | cells | hours | cells without a time |", "|---|---|---|---|---|"]
     for row in costs:
         out.append(f"| {row['group']} | {row['kind']} | {row['cells']} | {row['hours']:.2f} | {row['unrecorded']} |")
     total = {key: sum(row[key] for row in costs) for key in ("cells", "hours", "unrecorded")}
     out.append(f"| Total | | {total['cells']} | {total['hours']:.2f} | {total['unrecorded']} |")
+    out += ["", "| cost: column | learner cells | learner hours | hours of data made for it | hours per learner cell |",
+            "|---|---|---|---|---|"]
+    for column in dict.fromkeys(row["column"] for row in costs):
+        learners = [row for row in costs if row["column"] == column and row["kind"] == "learner"]
+        cells, hours = sum(row["cells"] for row in learners), sum(row["hours"] for row in learners)
+        data = sum(row["hours"] for row in costs if row["column"] == column and row["kind"] != "learner")
+        timed = cells - sum(row["unrecorded"] for row in learners)
+        per_cell = f"{(hours + data) / timed:.3f}" if timed else "-"
+        out.append(f"| {column} | {cells} | {hours:.2f} | {data:.2f} | {per_cell} |")
     return "\n".join(out)
