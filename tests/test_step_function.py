@@ -91,3 +91,15 @@ def test_analyze_dynamics_with_a_step_function(step_file, tmp_path, capsys):
     assert "rew MAE" in capsys.readouterr().out
     assert main([*args, "--gap", "gravity"]) == 2
     assert "--gap" in capsys.readouterr().err
+
+
+def test_analyze_content_takes_the_velocity_column(tmp_path, capsys):
+    save(_data(0.0), tmp_path / "source.npz")
+    save(_data(0.3), tmp_path / "edited.npz")
+    args = ["analyze", "content", str(tmp_path / "source.npz"), str(tmp_path / "edited.npz"), "--json"]
+    assert main([*args, "--velocity-index", "2"]) == 0
+    assert "forward_velocity_correlation" in json.loads(capsys.readouterr().out)["matched"]
+    assert main(args) == 0
+    assert "forward_velocity_correlation" not in json.loads(capsys.readouterr().out)["matched"]
+    assert main([*args, "--velocity-index", "7"]) == 2
+    assert "outside the 3-d observations" in capsys.readouterr().err
