@@ -755,3 +755,15 @@ def test_priors_only_trains_the_grid_s_priors_and_nothing_else(tmp_path, monkeyp
     assert all(store.read_result(config.store, cell) is None for cell in plan(config).cells()
                if isinstance(cell, run.DataCell))  # and no edit made
     assert run.run_bench(config, progress=False, echo=lambda line: None, priors_only=True) == []
+
+
+def test_a_column_set_name_stands_for_its_columns(tmp_path, capsys):
+    from xted.pipelines.bench.columns import HEAD_TO_HEAD_COLUMNS, expand_column_sets
+
+    assert expand_column_sets(("head-to-head",)) == HEAD_TO_HEAD_COLUMNS
+    assert expand_column_sets(("Tgt", "table")).count("Tgt") == 1
+    assert main(["bench", "report", "--envs", "halfcheetah", "--gaps", "thigh", "--columns", "head-to-head",
+                 "--store", str(tmp_path / "store"), "--cache", str(tmp_path / "cache")]) == 0
+    header = capsys.readouterr().out.splitlines()[0]
+    assert all(f" {column} |" in header for column in HEAD_TO_HEAD_COLUMNS)
+    assert main(["bench", "report", "--columns", "head-to-tail", "--store", str(tmp_path / "store")]) == 2

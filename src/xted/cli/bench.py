@@ -16,7 +16,7 @@ from typer.core import TyperGroup
 from xted.cli.options import fields_epilog, parse_seeds
 from xted.errors import InputError
 from xted.diffusion.config import EditConfig
-from xted.pipelines.bench.columns import COLUMNS, LEARNER_WRAPPERS
+from xted.pipelines.bench.columns import COLUMN_SETS, COLUMNS, LEARNER_WRAPPERS, expand_column_sets
 from xted.pipelines.bench.config import BenchConfig, RayConfig
 from xted.rl.config import OFFLINE_ALGORITHMS
 
@@ -71,7 +71,8 @@ def grid_config(
                                 help="Target levels (shipped ENV-LEVEL data), comma-separated."),
     gaps: str = typer.Option(_joined(DEFAULTS.gaps), "--gaps", help="Source domains, comma-separated."),
     columns: str = typer.Option(_joined(DEFAULTS.columns), "--columns",
-                                help=f"Training data per learner, comma-separated: {', '.join(COLUMNS)}."),
+                                help=f"Training data per learner, comma-separated: {', '.join(COLUMNS)}; or a set of "
+                                f"them: {', '.join(COLUMN_SETS)}."),
     algos: str = typer.Option(_joined(DEFAULTS.algos), "--algos",
                               help="iql, td3bc, bc (comma-separated); the DARA, IGDF and OTDF columns are IQL's."),
     seeds: str = typer.Option(_joined(DEFAULTS.seeds), "--seeds", help="Seeds, trained together per group."),
@@ -112,7 +113,7 @@ def grid_config(
     """The grid both commands name, from its options (checked by BenchConfig)."""
     return BenchConfig(
         envs=_names(envs, "--envs"), targets=_names(targets, "--targets"), gaps=_names(gaps, "--gaps"),
-        columns=_names(columns, "--columns"), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
+        columns=expand_column_sets(_names(columns, "--columns")), algos=_names(algos, "--algos"), seeds=tuple(parse_seeds(seeds)),
         steps=steps, eval_every=eval_every, eval_episodes=eval_episodes, kappa=kappa, edit=tuple(edit),
         project_dynamics=project_dynamics, dynamics_proxy_steps=dynamics_proxy_steps, overrides=tuple(overrides),
         priors=tuple(priors), prior_steps=prior_steps, prior_preset=prior_preset,

@@ -117,3 +117,11 @@ TABLE_COLUMNS = family("table")
 AUGMENT_COLUMNS = family("augment")
 # The head-to-head of data-level methods: one protocol, one learner.
 HEAD_TO_HEAD_COLUMNS = (TGT, TGT_SRC, TGT_SRC_DARA, TGT_SRC_IGDF, TGT_SRC_OTDF, TGT_EDITED, TGT_GUARDED)
+# Names that stand for several columns in --columns.
+COLUMN_SETS = {"table": TABLE_COLUMNS, "head-to-head": HEAD_TO_HEAD_COLUMNS, "augment": AUGMENT_COLUMNS,
+               "multi-source": family("multi-source")}
+
+
+def expand_column_sets(names: tuple[str, ...]) -> tuple[str, ...]:
+    """``names`` with each set's name (``head-to-head``, ``table``, ...) replaced by its columns, each once."""
+    return tuple(dict.fromkeys(column for name in names for column in COLUMN_SETS.get(name, (name,))))
