@@ -563,7 +563,7 @@ def test_the_ray_executor_without_ray_names_the_fix(tmp_path, capsys, monkeypatc
 
 
 def test_failed_cells_are_named_and_exit_1(tmp_path, capsys, monkeypatch):
-    def failing(config, echo, ray):
+    def failing(config, echo, ray, priors_only):
         assert ray.retries == 4 and ray.address is None
         raise CellsFailed([("tgt-iql-seed0-abc", "its worker died, 5 times")], ["src-iql-seed0-def"])
 

@@ -98,16 +98,26 @@ def test_a_deviation_lies_between_the_nearest_and_the_farthest_cost():
 
 
 def test_behaviour_vae_prefers_the_targets_actions():
-    target = transitions(1000, 0.0, 0)
+    target = transitions(3000, 0.0, 0)
     target["actions"] = np.tanh(target["observations"][:, :2]).astype(np.float32)  # actions a function of s
     config = OTDFConfig(vae_hidden=(64, 64), vae_steps=1500, iql=TINY_IQL)
     params, losses = otdf.train_behaviour(jax.random.PRNGKey(0), target, config)
     assert losses[-100:].mean() < losses[:100].mean()
-    obs = jnp.asarray(target["observations"][:200])
-    latents = jax.random.normal(jax.random.PRNGKey(1), (200, 10, 4))
-    own = otdf.behaviour_log_prob(params, obs, jnp.asarray(target["actions"][:200]), latents, config)
-    flipped = otdf.behaviour_log_prob(params, obs, -jnp.asarray(target["actions"][:200]), latents, config)
+    obs = jnp.asarray(target["observations"][:2500])  # more states than one decoding chunk
+    decoded = otdf.decode_behaviour(params, obs, jax.random.PRNGKey(1), config, action_dim=2)
+    assert decoded.shape == (2500, config.behaviour_samples, 2)
+    own = otdf.behaviour_log_prob(decoded[:200], jnp.asarray(target["actions"][:200]), config)
+    flipped = otdf.behaviour_log_prob(decoded[:200], -jnp.asarray(target["actions"][:200]), config)
     assert float(own.mean()) > float(flipped.mean()) + 1.0
+    # Seeds decode apart, each with its own CVAE and key; a state's draws do not depend on its chunk.
+    stacked = jax.tree.map(lambda x: jnp.stack([x, x]), params)
+    both = otdf.decode_behaviours(stacked, obs, jax.random.split(jax.random.PRNGKey(1), 2), config, 2)
+    assert both.shape == (2, 2500, config.behaviour_samples, 2) and not np.allclose(both[0], both[1])
+
+
+def test_otdf_redraws_must_fall_on_training_segments():
+    with pytest.raises(InputError, match="multiple of 1,000"):
+        OTDFConfig(behaviour_redraw_every=1500)
 
 
 @pytest.mark.parametrize("method", [IGDFConfig(keep_fraction=0.25, weight_scale=1.0), OTDFConfig(keep_fraction=0.8)])

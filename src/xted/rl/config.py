@@ -12,6 +12,7 @@ from xted.errors import InputError
 
 ONLINE_ALGORITHM_NAMES = ("sac", "td3")  # xted.rl.online.ONLINE_ALGORITHMS
 OFFLINE_STEPS = 30_000  # gradient updates of an offline run: xted.train_policy, xted policy and the bench
+TRAINING_SEGMENT = 1000  # offline updates per jitted call: losses are recorded and the bar moves once a segment
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,12 +123,17 @@ class OTDFConfig:
     kl_weight: float = setting(0.5, "Weight of the CVAE's KL term against its reconstruction MSE.")
     behaviour_weight: float = setting(0.5, "The actor loss subtracts this x mean log beta(pi(s) | s).")
     behaviour_samples: int = setting(10, "Latent samples of the log-sum-exp estimate of log beta.")
+    behaviour_redraw_every: int = setting(1000, "Updates between draws of each state's decoded behaviour actions (a "
+                                                "multiple of 1,000); every update reads its states' current draw.")
     behaviour_variance: float = setting(0.1, "Variance of the Gaussian N(a; dec(s, z), variance I) around each "
                                              "decoded action.")
     iql: IQLConfig = setting(IQLConfig(), "The IQL backbone trained on the filtered data (iql.FIELD=VALUE).")
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.behaviour_redraw_every < 1 or self.behaviour_redraw_every % TRAINING_SEGMENT:
+            raise InputError(f"OTDFConfig.behaviour_redraw_every must be a positive multiple of {TRAINING_SEGMENT:,}, "
+                             f"got {self.behaviour_redraw_every}")
 
 
 # The offline learners by their CLI names (``xted policy --algo``), with their configs.

@@ -30,7 +30,7 @@ from xted.errors import InputError, warn_data
 from xted.jsonfiles import read_json
 from xted.resume import check_same_run
 from xted.rl import igdf, otdf
-from xted.rl.config import IQL_WRAPPERS, OFFLINE_ALGORITHMS, IGDFConfig, OTDFConfig
+from xted.rl.config import IQL_WRAPPERS, OFFLINE_ALGORITHMS, TRAINING_SEGMENT, IGDFConfig, OTDFConfig
 from xted.rl.bc import BCConfig, bc_update, deterministic_act, init_bc
 from xted.rl.dara import CLASSIFIER_INPUTS, DARAConfig, corrected_rewards, source_reward_deltas
 from xted.rl.evaluation import PolicyFn, evaluate
@@ -171,19 +171,21 @@ def init_seeds(config: Learner, keys, obs_dim: int, action_dim: int, steps: int)
 
 
 _STATIC_TRAIN = ("config", "steps", "s4rl_noise", "source_filter")
-PER_SEED_ROWS = ("rewards", "source_score")  # rows that differ between seeds (DARA's rewards, IGDF's scores)
+# Rows that differ between seeds: DARA's rewards, IGDF's and OTDF's scores, OTDF's decoded behaviour actions.
+PER_SEED_ROWS = ("rewards", "source_score", "behaviour_actions")
 
 
 @partial(jax.jit, static_argnames=_STATIC_TRAIN)
 def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise: float = 0.0, start=0,
-                source_filter: ScoredSource | None = None, behaviour=None):
+                source_filter: ScoredSource | None = None):
     """``steps`` updates of one seed on batches drawn from ``data``: (state, key, per-step infos).
 
     ``start`` is the index of the first update. It is passed apart from the state so that under
     ``vmap`` over seeds it stays unbatched and a schedule on it (TD3+BC's delayed actor step)
     remains a ``lax.cond`` instead of becoming a select that computes both branches.
     ``source_filter`` (IGDF's or OTDF's config) keeps and weights each batch's source transitions
-    by ``data["source_score"]``; ``behaviour``, OTDF's CVAE params, regularises the actor.
+    by ``data["source_score"]``; ``data["behaviour_actions"]`` (OTDF's decoded behaviour actions per
+    state) regularises the actor.
     """
     update = _ALGORITHMS[type(config)].update
     size = data["observations"].shape[0]
@@ -198,10 +200,8 @@ def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise:
         extra = {}
         if source_filter is not None:
             batch = weigh_batch(batch, source_filter)
-        if behaviour is not None:
-            latents = jax.random.normal(jax.random.fold_in(noise_key, 1), (config.batch_size, source_filter.behaviour_samples,
-                                                     2 * batch["actions"].shape[-1]))
-            extra["actor_penalty"] = otdf.behaviour_penalty(behaviour, latents, source_filter)
+        if "behaviour_actions" in batch:
+            extra["actor_penalty"] = otdf.behaviour_penalty(batch.pop("behaviour_actions"), source_filter)
         state, info = update(state, batch, config, index, **extra)
         return (state, key), info
 
@@ -211,16 +211,15 @@ def train_steps(config: Learner, state, key, data: dict, steps: int, s4rl_noise:
 
 @partial(jax.jit, static_argnames=_STATIC_TRAIN)
 def train_seeds(config: Learner, states, keys, data: dict, steps: int, s4rl_noise: float = 0.0, start=0,
-                source_filter: ScoredSource | None = None, behaviour=None):
+                source_filter: ScoredSource | None = None):
     """:func:`train_steps` vmapped over stacked seeds; ``data``'s PER_SEED_ROWS (``rewards``, and
-    ``source_score`` where it has them) are ``[seeds, N]``, ``behaviour`` stacked per seed."""
+    ``source_score`` and ``behaviour_actions`` where it has them) have the seeds on their first axis."""
     own = {k: data[k] for k in PER_SEED_ROWS if k in data}
 
-    def one(state, key, rows, seed_behaviour):
-        return train_steps(config, state, key, {**data, **rows}, steps, s4rl_noise, start, source_filter,
-                           seed_behaviour)
+    def one(state, key, rows):
+        return train_steps(config, state, key, {**data, **rows}, steps, s4rl_noise, start, source_filter)
 
-    return jax.vmap(one)(states, keys, own, behaviour)
+    return jax.vmap(one)(states, keys, own)
 
 
 @partial(jax.jit, static_argnames="config")
@@ -239,7 +238,7 @@ def seed_policy(config: Learner, actor, obs_mean: np.ndarray, obs_std: np.ndarra
 
 
 # ----------------------------------------------------------------------------------------- driver
-def _segment_ends(steps: int, eval_every: int, chunk: int = 1000) -> list[int]:
+def _segment_ends(steps: int, eval_every: int, chunk: int = TRAINING_SEGMENT) -> list[int]:
     ends = set(range(chunk, steps, chunk)) | set(range(eval_every, steps, eval_every)) | {steps}
     return sorted(ends)
 
@@ -413,8 +412,12 @@ def _train_group(config: AlgoConfig, learner: Learner, target: Dataset, sources:
     bar = tqdm(total=steps, desc=description, unit="step", disable=not progress, smoothing=0.1)
     for end in _segment_ends(steps, eval_every):
         started = time.perf_counter()
+        if behaviour is not None and position % config.behaviour_redraw_every == 0:
+            draw_keys = jax.vmap(jax.random.fold_in, (0, None))(source_keys, 1 + position)  # 0: the CVAEs' own
+            device_data["behaviour_actions"] = otdf.decode_behaviours(behaviour, device_data["observations"],
+                                                                      draw_keys, config, target.action_dim)
         states, train_keys, infos = train_seeds(learner, states, train_keys, device_data, end - position, s4rl_noise,
-                                                position, source_filter, behaviour)
+                                                position, source_filter)
         jax.block_until_ready(states)
         train_seconds += time.perf_counter() - started
         segment = {name: np.asarray(values).mean(axis=1) for name, values in infos.items()}  # per seed

@@ -149,21 +149,51 @@ def train_behaviour(key, target: dict, config: OTDFConfig):
     return state.params, losses
 
 
-def behaviour_log_prob(params, obs, actions, latents, config: OTDFConfig):
-    """``log beta(a | s)``: log-mean-exp over the latents ``[B, K, 2|A|]`` of N(a; dec(s, z), variance I)."""
-    model = BehaviourVAE(config.vae_hidden, actions.shape[-1])
-    k = latents.shape[1]
-    decoded = model.apply({"params": params}, jnp.repeat(obs[:, None], k, axis=1), latents,
-                          method=BehaviourVAE.decode)
+DECODE_CHUNK = 2048  # states decoded at once (memory: chunk x behaviour_samples x the CVAE's width)
+
+
+def decode_behaviour(params, obs, key, config: OTDFConfig, action_dim: int):
+    """``[N, K, |A|]``: for every state, the CVAE's decoded actions of ``K = behaviour_samples`` latents
+    drawn from its prior N(0, I)."""
+    model = BehaviourVAE(config.vae_hidden, action_dim)
+    n, k = obs.shape[0], config.behaviour_samples
+    chunks = -(-n // DECODE_CHUNK)
+    padded = jnp.concatenate([obs, jnp.zeros((chunks * DECODE_CHUNK - n, obs.shape[1]), obs.dtype)])
+    latents = jax.random.normal(key, (chunks, DECODE_CHUNK, k, 2 * action_dim))
+
+    def decode(chunk):
+        states, z = chunk
+        return model.apply({"params": params}, jnp.repeat(states[:, None], k, axis=1), z, method=BehaviourVAE.decode)
+
+    decoded = jax.lax.map(decode, (padded.reshape(chunks, DECODE_CHUNK, -1), latents))
+    return decoded.reshape(chunks * DECODE_CHUNK, k, action_dim)[:n]
+
+
+@partial(jax.jit, static_argnames=("config", "action_dim"))
+def _decode_behaviours(params, obs, keys, config: OTDFConfig, action_dim: int):
+    return jax.vmap(decode_behaviour, in_axes=(0, None, 0, None, None))(params, obs, keys, config, action_dim)
+
+
+def decode_behaviours(params, obs, keys, config: OTDFConfig, action_dim: int):
+    """:func:`decode_behaviour` of each seed's CVAE (stacked ``params``, one key each): ``[S, N, K, |A|]``."""
+    return _decode_behaviours(params, obs, keys, config, action_dim)
+
+
+def behaviour_log_prob(decoded, actions, config: OTDFConfig):
+    """``log beta(a | s)`` from the state's decoded actions ``[B, K, |A|]``: the log-mean-exp over them of
+    N(a; dec(s, z), variance I), a Monte Carlo estimate over the CVAE's latent prior."""
     dim = actions.shape[-1]
     log_normal = (-0.5 * ((actions[:, None] - decoded) ** 2).sum(-1) / config.behaviour_variance
                   - 0.5 * dim * jnp.log(2 * jnp.pi * config.behaviour_variance))
-    return jax.nn.logsumexp(log_normal, axis=1) - jnp.log(k)
+    return jax.nn.logsumexp(log_normal, axis=1) - jnp.log(decoded.shape[1])
 
 
-def behaviour_penalty(params, latents, config: OTDFConfig):
-    """The actor loss's term per state: ``-behaviour_weight * log beta(pi(s) | s)``."""
-    return lambda obs, actions: -config.behaviour_weight * behaviour_log_prob(params, obs, actions, latents, config)
+def behaviour_penalty(decoded, config: OTDFConfig):
+    """The actor loss's term per state: ``-behaviour_weight * log beta(pi(s) | s)``, from the batch's
+    decoded behaviour actions. The decoded actions do not depend on the actor, so they are drawn ahead
+    (every ``behaviour_redraw_every`` updates, for every state) instead of per update as the authors
+    do: each update's expected gradient is the same, at a fraction of the decoder's cost."""
+    return lambda obs, actions: -config.behaviour_weight * behaviour_log_prob(decoded, actions, config)
 
 
 def train_behaviours(keys, target: dict, config: OTDFConfig):
