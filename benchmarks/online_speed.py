@@ -36,7 +36,7 @@ def device_buffer(size: int, rng: np.random.Generator) -> dict:
 def update_only(config: OnlineRunConfig, buffer_size: int, repeats: int) -> dict:
     algorithm, agent = ONLINE_ALGORITHMS[config.algo], config.agent
     rng = np.random.default_rng(0)
-    state = algorithm.init(jax.random.PRNGKey(0), OBS_DIM, ACTION_DIM, agent)
+    state = algorithm.init(jax.random.PRNGKey(0), OBS_DIM, ACTION_DIM, agent, 0)
     buffer = device_buffer(buffer_size, rng)
     rows = {k: np.asarray(buffer[k][:config.block]) for k in buffer}
     key = jax.random.PRNGKey(1)

@@ -24,7 +24,7 @@ def test_sac_update_fits_a_one_step_problem():
     actions = rng.uniform(-1, 1, (256, 2)).astype(np.float32)
     batch = {"observations": obs, "actions": actions, "rewards": -np.sum(actions**2, axis=1),
              "next_observations": obs, "terminals": np.ones(256, np.float32)}
-    state = init_sac(jax.random.PRNGKey(0), 3, 2, TINY)
+    state = init_sac(jax.random.PRNGKey(0), 3, 2, TINY, 0)
     losses = []
     for _ in range(300):
         state, info = sac_update(state, batch, TINY)

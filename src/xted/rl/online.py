@@ -46,7 +46,7 @@ BATCH_FIELDS = ("observations", "actions", "rewards", "next_observations", "term
 
 
 class OnlineAlgorithm(NamedTuple):
-    init: Callable[..., Any]  # (rng, obs_dim, action_dim, config) -> state with .actor
+    init: Callable[..., Any]  # (rng, obs_dim, action_dim, config, steps) -> state with .actor, as offline
     update: Callable[..., Any]  # (state, batch, config) -> (state, info)
     policy: str  # the actor's kind in xted.rl.policy_io
 
@@ -89,7 +89,7 @@ def train_online(domain: Domain, run_dir: str | Path, config: OnlineRunConfig = 
     algorithm, agent = ONLINE_ALGORITHMS[config.algo], config.agent
     env = make(domain)
     obs_dim, action_dim = env.observation_space.shape[0], env.action_space.shape[0]
-    state = algorithm.init(jax.random.PRNGKey(config.seed), obs_dim, action_dim, agent)
+    state = algorithm.init(jax.random.PRNGKey(config.seed), obs_dim, action_dim, agent, config.total_steps)
     record = {"domain": dataclasses.asdict(domain), "run": config.fingerprint()}
     if config.init_from is not None:
         init_state, record["init_sha256"] = _initial_state(Path(config.init_from), state, config)

@@ -28,7 +28,8 @@ class SACState:
     rng: jax.Array
 
 
-def init_sac(rng, obs_dim: int, action_dim: int, config: SACConfig) -> SACState:
+def init_sac(rng, obs_dim: int, action_dim: int, config: SACConfig, steps: int) -> SACState:
+    """Fresh networks (``steps``, the run's length, schedules nothing here: the learning rate is constant)."""
     actor_key, critic_key, rng = jax.random.split(rng, 3)
     obs, act = jnp.zeros((1, obs_dim)), jnp.zeros((1, action_dim))
     actor_def = TanhGaussianPolicy(config.hidden, action_dim)
