@@ -170,13 +170,9 @@ def decode_behaviour(params, obs, key, config: OTDFConfig, action_dim: int):
 
 
 @partial(jax.jit, static_argnames=("config", "action_dim"))
-def _decode_behaviours(params, obs, keys, config: OTDFConfig, action_dim: int):
-    return jax.vmap(decode_behaviour, in_axes=(0, None, 0, None, None))(params, obs, keys, config, action_dim)
-
-
 def decode_behaviours(params, obs, keys, config: OTDFConfig, action_dim: int):
     """:func:`decode_behaviour` of each seed's CVAE (stacked ``params``, one key each): ``[S, N, K, |A|]``."""
-    return _decode_behaviours(params, obs, keys, config, action_dim)
+    return jax.vmap(decode_behaviour, in_axes=(0, None, 0, None, None))(params, obs, keys, config, action_dim)
 
 
 def behaviour_log_prob(decoded, actions, config: OTDFConfig):
