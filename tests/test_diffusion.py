@@ -359,5 +359,8 @@ def test_train_prior_resume_and_refuse(tmp_path):
     (tmp_path / "a" / "prior.json").write_text(json.dumps(meta))
     train_prior_folder(data, tmp_path / "a", config, steps=25, **kw)
     assert load_prior(tmp_path / "a").step == 25
-    with pytest.raises(InputError, match="no prior.json"):
+    with pytest.raises(InputError, match="no prior folder or shipped prior of that name"):
         load_prior(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="no prior.json"):
+        load_prior(tmp_path / "empty")

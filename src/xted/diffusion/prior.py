@@ -109,7 +109,7 @@ def load_prior(source: str | Path) -> Prior:
     if not out_dir.exists() and isinstance(source, str) and (shipped.prior_dir(source) / "prior.json").is_file():
         out_dir = shipped.prior_dir(source)
     if not out_dir.exists():
-        raise InputError(f"{source!r}: no prior folder or shipped prior of that name "
+        raise InputError(f"{str(source)!r}: no prior folder or shipped prior of that name "
                          f"(shipped priors: {', '.join(shipped.prior_names())})")
     meta_path = out_dir / "prior.json"
     if not meta_path.exists():
