@@ -528,7 +528,7 @@ def test_edit_quality_rows_are_labelled_by_what_differs_from_today_s_edit_defaul
 @pytest.mark.parametrize("option, value, message", [
     ("--columns", "Tgt,Tgt+Magic", "unknown column 'Tgt+Magic'"),
     ("--gaps", "thigh,moon", "unknown gap 'moon'"),
-    ("--envs", "ant", "unknown env 'ant'"),
+    ("--envs", "humanoid", "unknown env 'humanoid'"),
     ("--seeds", "0,0", "--seeds"),
     ("--prior-preset", "huge", "unknown prior preset 'huge'"),
     ("--prior-set", "hopper:cross_blocks=2", "'hopper' is not an env in the grid"),

@@ -35,7 +35,7 @@ def test_dynamics_in_the_source_domain_flips(target_and_source, capsys):
     assert source["mae"] < 1e-6 < target["mae"]
 
 
-@pytest.mark.parametrize("args", [["--env", "ant"], ["--env", "halfcheetah", "--gap", "wind"]])
+@pytest.mark.parametrize("args", [["--env", "humanoid"], ["--env", "halfcheetah", "--gap", "wind"], ["--env", "ant"]])
 def test_bad_domain_exits_2(target_and_source, args, capsys):
     assert main(["analyze", "dynamics", *args, target_and_source[0]]) == 2
     assert "error" in capsys.readouterr().err

@@ -13,7 +13,8 @@ from xted.errors import InputError
 @pytest.mark.parametrize("metadata, env", [
     ({"env": "halfcheetah"}, "halfcheetah"), ({"env": "HalfCheetah-v5"}, "halfcheetah"),
     ({"env_name": "halfcheetah-medium-v2"}, "halfcheetah"), ({"env_name": "Walker2d-v5"}, "walker2d"),
-    ({"env": "Hopper-v5"}, "hopper"), ({"env": "Ant-v5"}, "Ant-v5"), ({}, None), ({"env": ""}, None),
+    ({"env": "Hopper-v5"}, "hopper"), ({"env": "Ant-v5"}, "ant"), ({"env": "Humanoid-v5"}, "Humanoid-v5"),
+    ({}, None), ({"env": ""}, None),
 ])
 def test_dataset_env_reads_ours_d4rls_and_minaris_names(metadata, env):
     assert dataset_env(metadata) == env

@@ -5,6 +5,7 @@ import xted.envs as envs
 from xted.data import Dataset, load
 from xted.envs.dynamics import dynamics_error, predict_next_observations, recovered_velocities, reward_error
 from xted.envs.make import forward_velocity_index
+from xted.envs.termination import termination
 from xted.errors import InputError
 from xted.pipelines.bench.grid import first_transitions
 
@@ -42,14 +43,14 @@ def test_parse_paper_and_parametric_gaps():
     assert envs.parse_domain("Hopper-v5", "gravity") == envs.parse_domain("hopper", "gravity")  # a Gymnasium id
 
 
-@pytest.mark.parametrize("env,gap", [("halfcheetah", "wind"), ("halfcheetah", "gravity=-1"), ("ant", None),
-                                     ("walker2d", "gravity=abc")])
+@pytest.mark.parametrize("env,gap", [("halfcheetah", "wind"), ("halfcheetah", "gravity=-1"), ("humanoid", None),
+                                     ("walker2d", "gravity=abc"), ("ant", "thigh"), ("ant", "thigh=2")])
 def test_bad_gaps_are_refused(env, gap):
     with pytest.raises(InputError):
         envs.parse_domain(env, gap)
 
 
-@pytest.mark.parametrize("env", ["halfcheetah", "walker2d", "hopper"])
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d", "hopper", "ant"])
 def test_target_transitions_replay_exactly(env):
     obs, act, nxt = rollout(envs.parse_domain(env), steps=200)
     result = dynamics_error(envs.parse_domain(env), obs, act, nxt)
@@ -131,6 +132,27 @@ def test_dimension_mismatch_is_refused():
         dynamics_error(domain, np.zeros((3, 11)), np.zeros((3, 6)), np.zeros((3, 11)))
 
 
+def test_ant_observations_with_contact_forces_are_refused_with_the_option_that_records_the_state():
+    with pytest.raises(InputError, match="105 dims but ant states have 27.*include_cfrc_ext_in_observation=False"):
+        dynamics_error(envs.parse_domain("ant"), np.zeros((3, 105)), np.zeros((3, 8)), np.zeros((3, 105)))
+
+
+@pytest.mark.parametrize("gap", ["gravity", "friction"])
+def test_ant_gaps_change_its_dynamics(gap):
+    source = envs.parse_domain("ant", gap)
+    obs, act, nxt = rollout(source, steps=200)
+    assert obs.shape[1] == 27  # qpos without x and y, then qvel: no contact forces
+    assert dynamics_error(source, obs, act, nxt).mae < 1e-8
+    assert dynamics_error(envs.parse_domain("ant"), obs, act, nxt).mae > 1e-3
+
+
+def test_ant_rewards_replay_up_to_the_lag_of_its_forward_velocity():
+    domain = envs.parse_domain("ant")
+    obs, act, nxt, rewards = rollout(domain, steps=200, with_rewards=True)
+    replayed = reward_error(domain, as_dataset(obs, act, nxt, rewards))
+    assert replayed.n == 200 and 0 < replayed.mae < 0.02 and replayed.correlation > 0.99
+
+
 @pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
 def test_recorded_rewards_replay_exactly_and_a_shift_shows_as_bias(env):
     domain = envs.parse_domain(env)
@@ -168,3 +190,18 @@ def test_recovered_velocities_replay_a_recording_through_its_clipped_states():
     assert elsewhere.at_clip == recovered.at_clip and elsewhere.unrecovered > recovered.at_clip // 2
     observed = data.observations[:, velocities]
     assert np.sum(np.any(elsewhere.velocities != observed, axis=1)) == elsewhere.at_clip - elsewhere.unrecovered
+
+
+def test_ant_termination_rule_agrees_with_ant_v5():
+    env = envs.make("ant")
+    rng = np.random.default_rng(0)
+    obs, _ = env.reset(seed=0)
+    next_observations, terminated = [], []
+    for _ in range(600):
+        obs, _, done, truncated, _ = env.step(rng.uniform(-1, 1, 8))
+        next_observations.append(obs)
+        terminated.append(done)
+        if done or truncated:
+            obs, _ = env.reset(seed=len(terminated))
+    rule = termination("Ant-v5")(np.array(next_observations))
+    assert np.array(terminated).any() and rule.tolist() == terminated

@@ -9,11 +9,12 @@ from conftest import first_steps
 
 from xted.cli.main import main
 from xted.data import Dataset, save
-from xted.envs import parse_domain, simulator
+from xted.envs import make, parse_domain, simulator
 from xted.errors import InputError
 from xted.viz import gl
 from xted.viz.episode import episode_states, root_positions, set_state
 from xted.viz.offscreen import OffscreenRenderer
+from xted.viz.state_names import state_names
 
 
 @pytest.fixture(scope="module")
@@ -81,6 +82,30 @@ def test_the_reconstructed_root_x_follows_the_simulator():
     np.testing.assert_array_equal(qvel, observations[:, 8:])
     assert abs(true_x[-1] - true_x[0]) > 0.5, "the body should travel"
     assert np.abs(qpos[:, 0] + true_x[0] - true_x).max() < 0.04
+
+
+def test_the_reconstructed_ant_root_follows_the_simulator_in_x_and_y():
+    """Ant observes neither x nor y; both come back from the velocities (world-frame for its free joint)."""
+    env = make("ant")
+    observation, _ = env.reset(seed=0)
+    observations, true_xy = [observation], [env.unwrapped.data.qpos[:2].copy()]
+    for action in np.random.default_rng(0).uniform(-1, 1, size=(60, 8)):
+        observation, *_ = env.step(action)
+        observations.append(observation)
+        true_xy.append(env.unwrapped.data.qpos[:2].copy())
+    model, dt = env.unwrapped.model, env.unwrapped.dt
+    env.close()
+    qpos, qvel = episode_states(model, np.array(observations), dt)
+    travelled = np.array(true_xy) - true_xy[0]
+    np.testing.assert_array_equal(qpos[:, 2:], np.array(observations)[:, :13])
+    assert qvel.shape == (61, 14) and np.abs(travelled[-1]).max() > 0.05, "the body should travel"
+    assert np.abs(qpos[:, :2] - travelled).max() < 0.05 * max(np.abs(travelled).max(), 1.0)
+
+
+def test_state_names_follow_the_observation_layout():
+    names = [name for name, _ in state_names(simulator(parse_domain("ant"))[0])]
+    assert len(names) == 27 and names[0] == "root z position" and names[13] == "root x velocity"
+    assert [name for name, _ in state_names(simulator(parse_domain("walker2d"))[0])][8] == "rootx velocity"
 
 
 @pytest.fixture(scope="module")

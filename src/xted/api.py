@@ -72,7 +72,7 @@ def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None
     """What an edit did: ``content`` always (how much of the source's task content it kept);
     ``proxy`` with ``target`` (the paper's measure: one-step error of source and edit under an MLP
     dynamics model fitted to the target, ``proxy_steps`` Adam steps); ``simulator`` with ``env``:
-    an env xted simulates (``halfcheetah``, ``walker2d``, ``hopper`` or their Gymnasium ids; every
+    an env xted simulates (``halfcheetah``, ``walker2d``, ``hopper``, ``ant`` or their Gymnasium ids; every
     transition replayed in that target simulator), or your own step function
     ``f(observations [N, d], actions [N, a]) -> next observations [N, d]`` (one-step errors only: it
     gives no rewards). ``velocity_index``: the observation column of forward velocity, for the
@@ -92,7 +92,7 @@ def train_policy(algo: str, target: Dataset | str | Path, sources: Sequence[Data
     """Train an offline policy (``iql``, ``td3bc``, ``bc``, ``dara``, ``igdf`` or ``otdf``) on ``target`` + ``sources``
     and return it (a :class:`~xted.rl.policy_io.Policy`: ``act``, ``save``, ``scores``).
 
-    ``env`` (``halfcheetah``, ``walker2d`` or ``hopper``, with ``gap`` for another domain of it) evaluates the
+    ``env`` (``halfcheetah``, ``walker2d``, ``hopper`` or ``ant``, with ``gap`` for another domain of it) evaluates the
     policy every ``eval_every`` steps in that simulator; None trains without one (data of any
     robot). ``fields`` replace fields of the algorithm's config (``expectile=0.9``,
     ``hidden=(64, 64)``; DARA's backbone as ``iql=IQLConfig(...)``)."""

@@ -9,6 +9,7 @@ import typer
 
 from xted.analysis.config import ProxyConfig
 from xted.envs import parse_domain
+from xted.envs.domains import KNOWN_ENVS
 
 app = typer.Typer(help="Measure datasets: simulator dynamics error, learned proxy, task content.", no_args_is_help=True)
 
@@ -16,7 +17,7 @@ app = typer.Typer(help="Measure datasets: simulator dynamics error, learned prox
 @app.command("dynamics")
 def dynamics(
     datasets: List[str] = typer.Argument(..., help="Dataset paths or shipped names."),
-    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d, hopper (or a Gymnasium id), or your own step "
+    env: str = typer.Option(..., "--env", help=f"{KNOWN_ENVS}, or your own step "
                             "function as module:function or path/to/file.py:function (f(observations, actions) -> "
                             "next observations, batched; docs/own_data.md)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to replay in (default: the target domain)."),
@@ -58,7 +59,7 @@ def dynamics(
 @app.command("validity")
 def validity(
     datasets: List[str] = typer.Argument(..., help="Dataset paths or shipped names."),
-    env: Optional[str] = typer.Option(None, "--env", help="The target env (halfcheetah, walker2d, hopper): its "
+    env: Optional[str] = typer.Option(None, "--env", help=f"The target env, {KNOWN_ENVS}: its "
                                                           "termination rule and action space."),
     target: Optional[str] = typer.Option(None, "--target", help="Target data: the ranges its actions and states span."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
@@ -160,7 +161,7 @@ def proxy(
 def content(
     source: str = typer.Argument(..., help="The source dataset."),
     edited: str = typer.Argument(..., help="Its edit (same episodes)."),
-    env: Optional[str] = typer.Option(None, "--env", help="halfcheetah, walker2d or hopper: adds the forward-velocity "
+    env: Optional[str] = typer.Option(None, "--env", help=f"{KNOWN_ENVS}: adds the forward-velocity "
                                       "correlation."),
     velocity_index: Optional[int] = typer.Option(None, "--velocity-index", min=0,
                                                  help="The observation column of forward velocity, for data of another "

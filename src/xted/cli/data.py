@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from xted.data import formats, shipped
+from xted.envs.domains import KNOWN_ENVS
 from xted.errors import InputError
 
 app = typer.Typer(
@@ -53,7 +54,7 @@ def convert(
 
 @app.command()
 def make(
-    env: Annotated[str, typer.Option("--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id).")],
+    env: Annotated[str, typer.Option("--env", help=f"{KNOWN_ENVS}.")],
     level: Annotated[str, typer.Option("--level", help="random, medium, medium-replay, expert, medium-expert, source.")],
     out: Annotated[str, typer.Option("--out", help=DEST_HELP)],
     gap: Annotated[str | None, typer.Option("--gap", help="Domain gap (source data), e.g. gravity or thigh=3.")] = None,

@@ -10,6 +10,7 @@ import typer
 
 from xted.cli.options import config_options, fields_epilog
 from xted.envs import parse_domain
+from xted.envs.domains import KNOWN_ENVS
 from xted.fields import apply_overrides, field_help
 from xted.resume import discard_run
 from xted.rl.config import ONLINE_ALGORITHM_NAMES, OnlineRunConfig
@@ -26,7 +27,7 @@ RUN_FIELDS = "\n\n".join(fields_epilog({f"--set {name}.FIELD (with --algo {name}
 @config_options(OnlineRunConfig, into="run_fields", skip=("total_steps", "init_from", "sac", "td3"),
                 panel="Run settings")
 def train(
-    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
+    env: str = typer.Option(..., "--env", help=f"{KNOWN_ENVS}."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain gap to train in (default: target)."),
     out: Path = typer.Option(..., "--out", help="Run folder; an existing one is resumed (same settings)."),
     steps: int = typer.Option(OnlineRunConfig.total_steps, "--steps", min=1,

@@ -8,6 +8,7 @@ from typing import List, Optional
 import numpy as np
 import typer
 
+from xted.envs.domains import KNOWN_ENVS
 from xted.errors import InputError
 from xted.viz.config import PlotDefaults
 
@@ -83,7 +84,7 @@ def spectrum(
 def trajectory(
     source: str = typer.Argument(..., help="Source dataset (path or shipped name)."),
     edited: str = typer.Argument(..., help="Its edit (same episodes)."),
-    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
+    env: str = typer.Option(..., "--env", help=f"{KNOWN_ENVS}."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain whose simulator replays the edit (default: target)."),
     episode: int = typer.Option(0, "--episode", help="Episode index (negative counts from the end)."),
     dims: Optional[str] = typer.Option(None, "--dims",

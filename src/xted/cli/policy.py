@@ -11,6 +11,7 @@ import typer
 
 from xted.cli.main import app
 from xted.cli.options import fields_epilog, parse_seeds
+from xted.envs.domains import KNOWN_ENVS
 from xted.fields import apply_overrides
 from xted.errors import InputError
 from xted.rl.config import OFFLINE_STEPS
@@ -27,7 +28,7 @@ def policy(
     target: str = typer.Option(..., "--target", help="Target dataset (path or shipped name)."),
     sources: List[str] = typer.Option([], "--source", help="Source dataset mixed in (repeatable)."),
     env: Optional[str] = typer.Option(
-        None, "--env", help="halfcheetah, walker2d or hopper, to evaluate in (default: the target data's recorded env); "
+        None, "--env", help=f"{KNOWN_ENVS}, to evaluate in (default: the target data's recorded env); "
         "none: train without a simulator (needs --save)."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain to evaluate in (default: the target domain)."),
     steps: int = typer.Option(OFFLINE_STEPS, "--steps", min=1, help="Gradient steps per seed."),

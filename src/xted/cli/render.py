@@ -8,13 +8,14 @@ from typing import Optional
 import typer
 
 from xted.cli.main import app
+from xted.envs.domains import KNOWN_ENVS
 from xted.viz.config import VideoConfig
 
 
 @app.command()
 def render(
     data: str = typer.Argument(..., help="Dataset (path or shipped name)."),
-    env: str = typer.Option(..., "--env", help="halfcheetah, walker2d or hopper (or a Gymnasium id)."),
+    env: str = typer.Option(..., "--env", help=f"{KNOWN_ENVS}."),
     gap: Optional[str] = typer.Option(None, "--gap", help="Domain whose model draws the body (default: target)."),
     episode: int = typer.Option(0, "--episode", help="Episode index (negative counts from the end)."),
     out: Path = typer.Option(..., "--out", help="Video file, .mp4 or .gif (replaced if it exists)."),

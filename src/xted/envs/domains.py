@@ -10,22 +10,29 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from xted.envs.morphology import THIGH_BODIES
 from xted.errors import InputError
 
-ENV_IDS = {"halfcheetah": "HalfCheetah-v5", "walker2d": "Walker2d-v5", "hopper": "Hopper-v5"}
+ENV_IDS = {"halfcheetah": "HalfCheetah-v5", "walker2d": "Walker2d-v5", "hopper": "Hopper-v5", "ant": "Ant-v5"}
+KNOWN_ENVS = "halfcheetah, walker2d, hopper or ant (or a Gymnasium id)"  # for help texts
 
 # The paper's source domains (xTED §5.1): 2x gravity, 0.25x/0.5x friction, 2x thigh.
 PAPER_GAPS = {
     "halfcheetah": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.25}, "thigh": {"thigh": 2.0}},
     "walker2d": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}, "thigh": {"thigh": 2.0}},
     "hopper": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}, "thigh": {"thigh": 2.0}},  # walker2d's
+    "ant": {"gravity": {"gravity": 2.0}, "friction": {"friction": 0.5}},  # legs without a thigh to scale
 }
 
 # D4RL reference returns (random, expert) for normalised scores.
 REFERENCE_RETURNS = {"halfcheetah": (-280.178953, 12135.0), "walker2d": (1.629008, 4592.3),
-                     "hopper": (-20.272305, 3234.3)}
+                     "hopper": (-20.272305, 3234.3), "ant": (-325.6, 3879.7)}
 
 FACTORS = ("gravity", "friction", "thigh")
+
+
+def _refuse_thigh(env: str) -> None:
+    raise InputError(f"{env} has no thigh gap (its legs have no thigh to scale); use gravity or friction")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,6 +43,10 @@ class Domain:
     gravity: float = 1.0
     friction: float = 1.0
     thigh: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.thigh != 1.0 and self.env not in THIGH_BODIES:
+            _refuse_thigh(self.env)
 
     @property
     def env_id(self) -> str:
@@ -72,6 +83,8 @@ def parse_domain(env: str, gap: str | None = None) -> Domain:
     factors: dict[str, float] = {}
     for part in gap.split(","):
         part = part.strip()
+        if part.partition("=")[0].strip() == "thigh" and env not in THIGH_BODIES:
+            _refuse_thigh(env)
         if "=" in part:
             key, _, value = part.partition("=")
             key = key.strip()

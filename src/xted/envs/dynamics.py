@@ -1,7 +1,7 @@
 """Simulator dynamics and reward error: replay each transition (s, a, s') in a domain's simulator.
 
-Observations of HalfCheetah and Walker2d omit only the root x position, which does not affect
-the dynamics, so ``s`` fixes the full simulator state (with x = 0) and one env step from it
+Observations omit only the root's ground-plane position (x; x and y for Ant), which does not affect
+the dynamics (:mod:`xted.envs.layout`), so ``s`` fixes the full simulator state (with them at 0) and one env step from it
 under ``a`` gives the true next observation. Walker2d-v5 clips observed velocities to +-10,
 so the next state is compared with the simulator's prediction clipped the same way (what the env
 would observe). In a recording, a state ``s`` with a velocity *at* the clip bound does not fix
@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from xted.envs.domains import Domain
+from xted.envs.layout import full_qpos, observation, observed_positions, state_dims
 from xted.envs.make import make, observation_velocity_clip, simulator
 from xted.errors import InputError
 
@@ -82,21 +83,17 @@ def predict_next_observations(domain: Domain, observations: np.ndarray, actions:
 
 def _with_velocities(model: mujoco.MjModel, observations: np.ndarray, velocities: np.ndarray | None) -> np.ndarray:
     observations = np.asarray(observations, dtype=np.float64)
-    if velocities is None or observations.shape[1] != model.nq - 1 + model.nv:
+    if velocities is None or observations.shape[1] != state_dims(model):
         return observations  # a wrong width is reported by the caller
     if velocities.shape != (len(observations), model.nv):
         raise InputError(f"velocities have shape {velocities.shape}; expected {(len(observations), model.nv)}")
-    return np.concatenate([observations[:, : model.nq - 1], velocities], axis=1)
+    return np.concatenate([observations[:, : observed_positions(model)], velocities], axis=1)
 
 
 def _replay(model: mujoco.MjModel, frame_skip: int, domain: Domain, observations: np.ndarray,
             actions: np.ndarray) -> np.ndarray:
     data = mujoco.MjData(model)
-    nq, nv = model.nq, model.nv
-    if observations.shape[1] != nq - 1 + nv:
-        raise InputError(
-            f"observations have {observations.shape[1]} dims but {domain.env} states have {nq - 1 + nv}"
-        )
+    check_state_width(domain, model, observations)
     if actions.shape[1] != model.nu:
         raise InputError(f"actions have {actions.shape[1]} dims but {domain.env} has {model.nu} actuators")
     predicted = np.empty_like(observations, dtype=np.float64)
@@ -105,18 +102,26 @@ def _replay(model: mujoco.MjModel, frame_skip: int, domain: Domain, observations
     return predicted
 
 
+def check_state_width(domain: Domain, model: mujoco.MjModel, observations: np.ndarray) -> None:
+    """Refuse observations that do not hold ``domain``'s state, naming the layout it expects."""
+    expected = state_dims(model)
+    if observations.shape[1] != expected:
+        hint = (" (record Ant-v5 with include_cfrc_ext_in_observation=False: its contact forces are no state)"
+                if domain.env == "ant" and observations.shape[1] > expected else "")
+        raise InputError(f"observations have {observations.shape[1]} dims but {domain.env} states have {expected}{hint}")
+
+
 def _step(model: mujoco.MjModel, data: mujoco.MjData, frame_skip: int, state: np.ndarray,
           action: np.ndarray) -> np.ndarray:
-    """One env step from ``state`` (an observation, root x = 0) under ``action`` clipped to the
-    actuator range: the next ``[qpos[1:], qvel]``, unclipped."""
-    nq = model.nq
+    """One env step from ``state`` (an observation, its omitted root coordinates 0) under ``action``
+    clipped to the actuator range: the next observation, unclipped."""
+    positions = observed_positions(model)
     mujoco.mj_resetData(model, data)
-    data.qpos[0] = 0.0
-    data.qpos[1:] = state[: nq - 1]
-    data.qvel[:] = state[nq - 1 :]
+    data.qpos[:] = full_qpos(model, state[:positions])
+    data.qvel[:] = state[positions:]
     data.ctrl[:] = np.clip(action, model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1])
     mujoco.mj_step(model, data, nstep=frame_skip)
-    return np.concatenate([data.qpos[1:], data.qvel])
+    return observation(model, data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,9 +143,9 @@ def recovered_velocities(domain: Domain, data: Dataset, tolerance: float = 1e-3)
     recorded one by more than ``tolerance`` (data not recorded in ``domain``, or not consecutive)
     keeps its clipped velocities and is counted unrecovered."""
     model, frame_skip = simulator(domain)
-    nq = model.nq
+    positions = observed_positions(model)
     observations = np.asarray(data.observations, dtype=np.float64)
-    velocities = observations[:, nq - 1 :].copy()
+    velocities = observations[:, positions:].copy()
     clip = observation_velocity_clip(domain)
     at_clip = np.flatnonzero(np.any(np.abs(velocities) >= clip - 1e-6, axis=1))
     episode_starts = set(data.episode_bounds()[:, 0].tolist())
@@ -150,13 +155,13 @@ def recovered_velocities(domain: Domain, data: Dataset, tolerance: float = 1e-3)
         if t in episode_starts:
             unrecovered += 1
             continue
-        previous = np.concatenate([observations[t - 1, : nq - 1], velocities[t - 1]])
+        previous = np.concatenate([observations[t - 1, :positions], velocities[t - 1]])
         replayed = _step(model, state, frame_skip, previous, data.actions[t - 1])
-        observed = np.concatenate([replayed[: nq - 1], np.clip(replayed[nq - 1 :], -clip, clip)])
+        observed = np.concatenate([replayed[:positions], np.clip(replayed[positions:], -clip, clip)])
         if np.abs(observed - observations[t]).max() > tolerance:
             unrecovered += 1
             continue
-        velocities[t] = replayed[nq - 1 :]
+        velocities[t] = replayed[positions:]
     return RecoveredVelocities(velocities, at_clip=len(at_clip), unrecovered=unrecovered)
 
 
@@ -170,12 +175,12 @@ def dynamics_error(
     observations = np.asarray(observations, dtype=np.float64)
     next_observations = np.asarray(next_observations, dtype=np.float64)
     model, frame_skip = simulator(domain)
-    clip, nq = observation_velocity_clip(domain), model.nq
+    clip, positions = observation_velocity_clip(domain), observed_positions(model)
     keep = np.ones(len(observations), bool) if replay_states_at_clip else _state_is_fixed(domain, model, observations)
-    beyond = np.any(np.abs(np.concatenate([observations[:, nq - 1:], next_observations[:, nq - 1:]], axis=1))
+    beyond = np.any(np.abs(np.concatenate([observations[:, positions:], next_observations[:, positions:]], axis=1))
                     > clip + 1e-6, axis=1)
     predicted = _replay(model, frame_skip, domain, observations[keep], np.asarray(actions)[keep])
-    predicted[:, nq - 1:] = np.clip(predicted[:, nq - 1:], -clip, clip)
+    predicted[:, positions:] = np.clip(predicted[:, positions:], -clip, clip)
     return DynamicsError.from_differences(predicted - next_observations[keep], excluded_clipped=int((~keep).sum()),
                                           beyond_clip=int(beyond[keep].sum()))
 
@@ -186,7 +191,7 @@ def _state_is_fixed(domain: Domain, model: mujoco.MjModel, observations: np.ndar
     clip = observation_velocity_clip(domain)
     if not np.isfinite(clip):
         return np.ones(len(observations), dtype=bool)
-    return ~np.any(np.abs(np.abs(observations[:, model.nq - 1:]) - clip) <= 1e-6, axis=1)
+    return ~np.any(np.abs(np.abs(observations[:, observed_positions(model):]) - clip) <= 1e-6, axis=1)
 
 
 def dataset_dynamics_error(domain: Domain, data: Dataset) -> DynamicsError:
@@ -220,16 +225,14 @@ def replayed_rewards(domain: Domain, observations: np.ndarray, actions: np.ndarr
     env = make(domain)
     try:
         base = env.unwrapped
-        nq = base.model.nq
-        if observations.shape[1] != nq - 1 + base.model.nv:
-            raise InputError(f"observations have {observations.shape[1]} dims but {domain.env} states have "
-                             f"{nq - 1 + base.model.nv}")
+        check_state_width(domain, base.model, observations)
+        positions = observed_positions(base.model)
         states = _with_velocities(base.model, observations, velocities)
         env.reset(seed=0)
         low, high = env.action_space.low, env.action_space.high
         rewards = np.empty(len(states), dtype=np.float64)
         for i, (state, action) in enumerate(zip(states, actions)):
-            base.set_state(np.concatenate([[0.0], state[: nq - 1]]), state[nq - 1 :])
+            base.set_state(full_qpos(base.model, state[:positions]), state[positions:])
             rewards[i] = base.step(np.clip(action, low, high))[1]
         return rewards
     finally:

@@ -16,9 +16,13 @@ import mujoco
 import numpy as np
 
 from xted.envs.domains import ENV_IDS, Domain, parse_domain
+from xted.envs.layout import observed_positions
 from xted.envs.morphology import scaled_thigh_xml
 
-HEALTHY_Z = {"walker2d": (0.8, 2.0), "hopper": (0.7, float("inf"))}  # the v5 envs' defaults
+HEALTHY_Z = {"walker2d": (0.8, 2.0), "hopper": (0.7, float("inf")), "ant": (0.2, 1.0)}  # the v5 envs' defaults
+# Ant-v5's default observation appends the bodies' contact forces, an output of the step and not state:
+# xted's Ant observes the state alone, ``[qpos[2:], qvel]`` (27 dims).
+OBSERVATION_OPTIONS = {"ant": {"include_cfrc_ext_in_observation": False}}
 
 
 def _forward_mujoco_warning(message: str) -> None:
@@ -46,8 +50,9 @@ def apply_physics(model: mujoco.MjModel, domain: Domain) -> None:
 
 
 def make(env: str | Domain, gap: str | None = None, **kwargs) -> gym.Env:
-    """A Gymnasium env of ``env`` (``halfcheetah``, ``walker2d``, ``hopper``) in the domain ``gap``."""
+    """A Gymnasium env of ``env`` (``halfcheetah``, ``walker2d``, ``hopper``, ``ant``) in the domain ``gap``."""
     domain = env if isinstance(env, Domain) else parse_domain(env, gap)
+    kwargs = {**OBSERVATION_OPTIONS.get(domain.env, {}), **kwargs}
     if domain.thigh == 1.0:
         instance = gym.make(domain.env_id, **kwargs)
     else:
@@ -87,7 +92,7 @@ def observation_bounds(env: str | None) -> tuple[np.ndarray, np.ndarray] | None:
     if not np.isfinite(clip):
         return None
     model = simulator(domain)[0]
-    high = np.concatenate([np.full(model.nq - 1, np.inf), np.full(model.nv, clip)])
+    high = np.concatenate([np.full(observed_positions(model), np.inf), np.full(model.nv, clip)])
     return -high, high
 
 
@@ -109,5 +114,5 @@ def _action_space(env: str) -> gym.spaces.Box:
 
 
 def forward_velocity_index(domain: Domain) -> int:
-    """Index of the root's forward (x) velocity in observations ``[qpos[1:], qvel]``: ``nq - 1``."""
-    return int(simulator(domain)[0].nq - 1)
+    """Index of the root's forward (x) velocity in observations: their first velocity."""
+    return observed_positions(simulator(domain)[0])

@@ -1,6 +1,6 @@
 """Where a target env ends an episode, read off the observation it steps into: what an edited
 transition's terminal flag must say. Gymnasium's v5 rules with their default ranges; observations
-are ``[qpos[1:], qvel]``, so the torso height is column 0 and its angle column 1."""
+begin with the torso height (column 0; :mod:`xted.envs.layout`), then for the planar bodies its angle."""
 
 from __future__ import annotations
 
@@ -34,11 +34,17 @@ def _hopper(next_observations: np.ndarray) -> np.ndarray:
     return ~healthy
 
 
-_RULES: dict[str, Termination] = {"halfcheetah": _never, "walker2d": _walker2d, "hopper": _hopper}
+def _ant(next_observations: np.ndarray) -> np.ndarray:
+    z = next_observations[:, 0]
+    healthy = np.all(np.isfinite(next_observations), axis=1) & (HEALTHY_Z["ant"][0] <= z) & (z <= HEALTHY_Z["ant"][1])
+    return ~healthy
+
+
+_RULES: dict[str, Termination] = {"halfcheetah": _never, "walker2d": _walker2d, "hopper": _hopper, "ant": _ant}
 
 
 def termination(env: str | None) -> Termination | None:
-    """``env``'s termination rule (``halfcheetah``, ``walker2d``, ``hopper``; Gymnasium ids too), or None."""
+    """``env``'s termination rule (``halfcheetah``, ``walker2d``, ``hopper``, ``ant``; Gymnasium ids too), or None."""
     if env is None:
         return None
     name = env.lower().split("-")[0].replace("_", "")

@@ -18,6 +18,7 @@ from xted.atomic import atomic_path
 from xted.data import Dataset
 from xted.envs import Domain, simulator
 from xted.envs.dynamics import predict_next_observations
+from xted.envs.layout import observed_positions, omitted_positions
 from xted.errors import InputError
 from xted.viz.episode import episode_observations
 from xted.viz.results import RunCurves
@@ -120,6 +121,12 @@ def spectrum_figure(source: Dataset, edited: Dataset, segment: int = 100, cutoff
     return figure
 
 
+def _default_dims(model) -> list[int]:
+    """Root height, the first limb joint's angle and the forward velocity."""
+    limb = next(j for j in range(model.njnt) if model.jnt_bodyid[j] != model.jnt_bodyid[0])
+    return [0, int(model.jnt_qposadr[limb]) - omitted_positions(model), observed_positions(model)]
+
+
 def trajectory_figure(domain: Domain, source: Dataset, edited: Dataset, episode: int = 0,
                       dims: list[int] | None = None, steps: int = 200,
                       names: tuple[str, str] = ("source", "edited")) -> Figure:
@@ -128,7 +135,7 @@ def trajectory_figure(domain: Domain, source: Dataset, edited: Dataset, episode:
     check_same_episodes(source, edited)
     model, frame_skip = simulator(domain)
     dim_names = state_names(model)
-    dims = dims if dims is not None else [0, 2, model.nq - 1]  # root height, a thigh, forward velocity
+    dims = dims if dims is not None else _default_dims(model)
     outside = [d for d in dims if not 0 <= d < len(dim_names)]
     if outside or not dims:
         raise InputError(f"dims {outside or dims} are not state dims of {domain.env} (0 to {len(dim_names) - 1})")
