@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from xted.envs.domains import Domain
-from xted.envs.layout import full_qpos, observation, observed_positions, state_dims
+from xted.envs.layout import full_qpos, observation, observed_positions, omitted_positions, state_dims
 from xted.envs.make import make, observation_velocity_clip, simulator
 from xted.errors import InputError
 
@@ -115,9 +115,11 @@ def _step(model: mujoco.MjModel, data: mujoco.MjData, frame_skip: int, state: np
           action: np.ndarray) -> np.ndarray:
     """One env step from ``state`` (an observation, its omitted root coordinates 0) under ``action``
     clipped to the actuator range: the next observation, unclipped."""
-    positions = observed_positions(model)
+    omitted = omitted_positions(model)
+    positions = model.nq - omitted
     mujoco.mj_resetData(model, data)
-    data.qpos[:] = full_qpos(model, state[:positions])
+    data.qpos[:omitted] = 0.0
+    data.qpos[omitted:] = state[:positions]
     data.qvel[:] = state[positions:]
     data.ctrl[:] = np.clip(action, model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1])
     mujoco.mj_step(model, data, nstep=frame_skip)
