@@ -25,7 +25,7 @@ import numpy as np
 
 from xted.envs.domains import Domain
 from xted.envs.layout import full_qpos, observation, observed_positions, omitted_positions, state_dims
-from xted.envs.make import make, observation_velocity_clip, simulator
+from xted.envs.make import OBSERVATION_OPTIONS, make, observation_velocity_clip, simulator
 from xted.errors import InputError
 
 if TYPE_CHECKING:
@@ -106,8 +106,9 @@ def check_state_width(domain: Domain, model: mujoco.MjModel, observations: np.nd
     """Refuse observations that do not hold ``domain``'s state, naming the layout it expects."""
     expected = state_dims(model)
     if observations.shape[1] != expected:
-        hint = (" (record Ant-v5 with include_cfrc_ext_in_observation=False: its contact forces are no state)"
-                if domain.env == "ant" and observations.shape[1] > expected else "")
+        options = ", ".join(f"{name}={value}" for name, value in OBSERVATION_OPTIONS.get(domain.env, {}).items())
+        hint = (f" (record {domain.env_id} with {options}: its default observation holds more than the state)"
+                if options and observations.shape[1] > expected else "")
         raise InputError(f"observations have {observations.shape[1]} dims but {domain.env} states have {expected}{hint}")
 
 
