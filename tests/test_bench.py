@@ -17,7 +17,7 @@ from xted.data import load
 from xted.envs import parse_domain
 from xted.envs.make import forward_velocity_index, observation_velocity_clip
 from xted.errors import InputError
-from xted.pipelines.bench import cells, grid, ray_executor, run, store
+from xted.pipelines.bench import cells, grid, ray_executor, report, run, store
 from xted.diffusion.config import EditConfig
 from xted.pipelines.bench.columns import TABLE_COLUMNS
 from xted.pipelines.bench.config import BenchConfig
@@ -207,7 +207,7 @@ def test_augmentation_columns_are_made_from_the_target_once_per_target(tmp_path,
     table = capsys.readouterr().out
     assert "| env | target | algo | Tgt | Tgt (Edit) | Tgt (Gen) | Tgt S4RL | Tgt SER |" in table
     assert "| halfcheetah | medium-replay | iql | 2.5 ± 0.5 [-3.9, 8.9] | 4.5 ± 0.5 [-1.9, 10.9] (+80.0%) |" in table
-    assert "| iql | P(improvement) | Tgt (Edit) > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
+    assert "| iql | P(improvement) | Tgt (Edit) > Tgt | 1.00 | [1.00, 1.00] | 1 | 1/1 |" in table
 
 
 def test_the_multi_source_columns_read_every_gap_s_source_at_once(tmp_path, fake):
@@ -380,8 +380,8 @@ def test_report_rows_and_markdown(tmp_path, capsys):
                "--steps", "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200",
                "--store", config.store, "--cache", config.cache]
     assert main(["bench", "report", *options, "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
-    rows = report["rows"]
+    printed = json.loads(capsys.readouterr().out)
+    rows = printed["rows"]
     assert [row["column"] for row in rows] == ["Tgt", "Tgt+Src", "Tgt+Edited"]
     for row in rows:
         assert {"env", "target", "gap", "column", "algo", "mean", "std", "n_seeds"} <= set(row)
@@ -390,17 +390,27 @@ def test_report_rows_and_markdown(tmp_path, capsys):
     assert rows[0]["ci95"] == pytest.approx([15 - 63.53, 15 + 63.53], abs=0.01)  # t(0.975, 1) = 12.706
     assert (rows[1]["mean"], rows[1]["n_seeds"], rows[1]["ci95"]) == (None, 0, None)
     assert (rows[2]["mean"], rows[2]["std"], rows[2]["n_seeds"], rows[2]["ci95"]) == (30.0, 0.0, 1, None)
-    measures = {(row["measure"], row["column"]): row for row in report["aggregate"]}
+    measures = {(row["measure"], row["column"]): row for row in printed["aggregate"]}
     assert set(measures) == {("IQM", "Tgt"), ("IQM", "Tgt+Edited"), ("P(improvement)", "Tgt+Edited > Tgt")}
     assert measures["IQM", "Tgt"]["value"] == 15.0 and measures["IQM", "Tgt"]["tasks"] == 1
     assert measures["P(improvement)", "Tgt+Edited > Tgt"]["value"] == 1.0  # 30 beats both seeds
+    assert measures["P(improvement)", "Tgt+Edited > Tgt"]["ahead"] == 1
+    assert measures["P(improvement)", "Tgt+Edited > Tgt"]["total_gain"] == 100.0  # 30 against a mean of 15
 
     png = tmp_path / "table.png"
     assert main(["bench", "report", *options, "--png", str(png)]) == 0
     table = capsys.readouterr().out
     assert "| 15.0 ± 5.0 [-48.5, 78.5] | — | 30.0 ± 0.0 (+100.0%) |" in table
-    assert "| iql | P(improvement) | Tgt+Edited > Tgt | 1.00 | [1.00, 1.00] | 1 |" in table
+    assert "| iql | P(improvement) | Tgt+Edited > Tgt | 1.00 | [1.00, 1.00] | 1 | 1/1 | +100.0% |" in table
     assert png.is_file()
+
+
+def test_mean_comparison_counts_ties_as_ahead_and_compares_totals_of_means():
+    # task 1: 12 against 10 (ahead); task 2: 5 against 5 (a tie counts, as "Tgt+Edited >= Tgt+Src");
+    # task 3: 1 against 15 (behind). Totals of means: 18 against 30.
+    better, baseline = [[11.0, 13.0], [5.0], [1.0, 1.0]], [[10.0], [4.0, 6.0], [15.0]]
+    assert report.mean_comparison(better, baseline) == {"ahead": 2, "total_gain": pytest.approx(-40.0)}
+    assert report.mean_comparison([[1.0]], [[0.0]])["total_gain"] is None
 
 
 def test_report_sets_the_paper_s_cells_under_each_line_and_its_total_over_the_same_rows(tmp_path, capsys):

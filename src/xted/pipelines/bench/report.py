@@ -71,7 +71,8 @@ IMPROVEMENTS = tuple((column.name, baseline) for column in COLUMNS.values() for 
 
 def aggregate(rows: list[dict]) -> list[dict]:
     """Per algo: each column's IQM over all (task, seed) scores, and P(edited > unedited) over
-    the tasks (env, target, gap) where both were run; each with its stratified-bootstrap 95% interval."""
+    the tasks (env, target, gap) where both were run; each with its stratified-bootstrap 95% interval,
+    and beside P(improvement) the paper's form of the claim (``mean_comparison``)."""
     out = []
     for algo in dict.fromkeys(row["algo"] for row in rows):
         scores = {}
@@ -86,18 +87,33 @@ def aggregate(rows: list[dict]) -> list[dict]:
             against = per_target_tgt if baseline == TGT and COLUMNS[better].per_target else scores.get(baseline, {})
             shared = [task for task in scores.get(better, {}) if task in against]
             if shared:
+                better_scores, baseline_scores = [scores[better][t] for t in shared], [against[t] for t in shared]
                 out.append({"algo": algo, "measure": "P(improvement)", "column": f"{better} > {baseline}",
-                            **improvement_interval([scores[better][t] for t in shared], [against[t] for t in shared])})
+                            **improvement_interval(better_scores, baseline_scores),
+                            **mean_comparison(better_scores, baseline_scores)})
     return out
+
+
+def mean_comparison(better: list[list[float]], baseline: list[list[float]]) -> dict:
+    """The paper's form of a claim over tasks: on how many the better column's mean over seeds is at
+    least the baseline's (``ahead``), and the change of its total of means against the baseline's
+    (``total_gain``, %; None where the baseline's total is 0)."""
+    better_means, baseline_means = [float(np.mean(s)) for s in better], [float(np.mean(s)) for s in baseline]
+    ahead = sum(b >= a for b, a in zip(better_means, baseline_means))
+    total = sum(baseline_means)
+    return {"ahead": ahead, "total_gain": None if total == 0 else 100 * (sum(better_means) - total) / abs(total)}
 
 
 def aggregate_markdown(rows: list[dict]) -> str:
     """The aggregate block: one line per algo, measure and column."""
-    out = ["| algo | measure | column | value | 95% interval | tasks |", "|---|---|---|---|---|---|"]
+    out = ["| algo | measure | column | value | 95% interval | tasks | mean ahead | total |",
+           "|---|---|---|---|---|---|---|---|"]
     for row in aggregate(rows):
         low, high = row["ci95"]
+        ahead = f"{row['ahead']}/{row['tasks']}" if "ahead" in row else ""
+        total = "" if row.get("total_gain") is None else f"{row['total_gain']:+.1f}%"
         out.append(f"| {row['algo']} | {row['measure']} | {row['column']} | {row['value']:.2f} | "
-                   f"[{low:.2f}, {high:.2f}] | {row['tasks']} |")
+                   f"[{low:.2f}, {high:.2f}] | {row['tasks']} | {ahead} | {total} |")
     return "\n".join(out)
 
 
