@@ -84,6 +84,18 @@ def test_table_from_bench_rows(tmp_path):
     assert png_size(tmp_path / "table.png") == (760, 420)
 
 
+def test_every_declared_column_drawn_at_once_gets_its_own_colour():
+    from matplotlib.colors import to_rgb
+
+    from xted.pipelines.bench.columns import COLUMNS
+    from xted.viz.plots import column_colors
+
+    colors = column_colors(list(COLUMNS))
+    assert len({to_rgb(color) for color in colors.values()}) == len(COLUMNS)
+    # a column keeps its colour whichever others are drawn beside it
+    assert column_colors(["Tgt", "Tgt+Src OTDF"])["Tgt+Src OTDF"] == colors["Tgt+Src OTDF"]
+
+
 def write_runs(folder):
     """A prior folder, an online run and an offline run, a few rows each."""
     (folder / "prior").mkdir()

@@ -208,7 +208,21 @@ def curves_figure(runs: list[RunCurves]) -> Figure:
 
 _ALGO_NAMES = {"iql": "IQL", "td3bc": "TD3+BC", "bc": "BC", "dara": "DARA"}
 _COLUMN_COLORS = {"Src": "tab:gray", "Tgt": "tab:purple", "Tgt+Src": "tab:olive", "Tgt+Edited": "tab:blue",
-                  "Tgt+Oracle": "tab:green", "Tgt+Src DARA": "tab:orange", "Tgt+Edited DARA": "tab:cyan"}
+                  "Tgt+Oracle": "tab:green", "Tgt+Src DARA": "tab:orange", "Tgt+Edited DARA": "tab:cyan",
+                  "Tgt+Guarded": "tab:red", "Tgt+Src IGDF": "tab:brown", "Tgt+Src OTDF": "tab:pink"}
+# For the other columns: tab20's lighter shades, none of them a colour above.
+_SPARE_COLORS = ("#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7", "#dbdb8d",
+                 "#9edae5")
+
+
+def column_colors(columns: list[str]) -> dict[str, str]:
+    """A colour per column, each different: a column keeps its own wherever it is drawn; the others
+    take spare ones in order."""
+    spare = iter(_SPARE_COLORS)
+    colors = {column: _COLUMN_COLORS.get(column) or next(spare, None) for column in columns}
+    if None in colors.values():
+        raise InputError(f"at most {len(_SPARE_COLORS)} columns besides {', '.join(_COLUMN_COLORS)} can be drawn at once")
+    return colors
 
 
 def table_figure(rows: list[dict]) -> Figure:
@@ -225,6 +239,7 @@ def table_figure(rows: list[dict]) -> Figure:
     figure = Figure(figsize=(1.6 + 0.5 * len(gaps) * len(columns) * len(panels), 4.2), layout="constrained")
     axes = figure.subplots(1, len(panels), sharey=True, squeeze=False)[0]
     x, width = np.arange(len(gaps)), 0.8 / len(columns)
+    colors = column_colors(columns)
     for axis, panel in zip(axes, panels):
         for number, column in enumerate(columns):
             offset = (number - (len(columns) - 1) / 2) * width
@@ -232,7 +247,7 @@ def table_figure(rows: list[dict]) -> Figure:
             means = [np.nan if row is None else row["mean"] for row in found]
             stds = [np.nan if row is None else row["std"] for row in found]
             axis.bar(x + offset, means, width, yerr=stds, capsize=2, label=column,
-                     color=_COLUMN_COLORS.get(column), alpha=0.85)
+                     color=colors[column], alpha=0.85)
             for position, row in zip(x + offset, found):
                 seeds = [] if row is None else row.get("scores", [])
                 axis.plot([position] * len(seeds), seeds, "k.", markersize=3)
