@@ -7,6 +7,7 @@ Figures are drawn without pyplot (no global state, no display needed): a ``Figur
 from __future__ import annotations
 
 import io
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -216,13 +217,10 @@ _SPARE_COLORS = ("#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94
 
 
 def column_colors(columns: list[str]) -> dict[str, str]:
-    """A colour per column, each different: a column keeps its own wherever it is drawn; the others
-    take spare ones in order."""
-    spare = iter(_SPARE_COLORS)
-    colors = {column: _COLUMN_COLORS.get(column) or next(spare, None) for column in columns}
-    if None in colors.values():
-        raise InputError(f"at most {len(_SPARE_COLORS)} columns besides {', '.join(_COLUMN_COLORS)} can be drawn at once")
-    return colors
+    """A colour per column, each different (up to 10 columns beyond those named above): a named column
+    keeps its own wherever it is drawn; the others take spare ones in order."""
+    spare = itertools.cycle(_SPARE_COLORS)
+    return {column: _COLUMN_COLORS.get(column) or next(spare) for column in columns}
 
 
 def table_figure(rows: list[dict]) -> Figure:
