@@ -431,6 +431,22 @@ def test_report_sets_the_paper_s_cells_under_each_line_and_its_total_over_the_sa
     assert "paper" not in capsys.readouterr().out
 
 
+def test_compact_report_is_one_line_per_task_with_the_paper_s_mean_and_a_repeated_cell_shortened(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh", "friction"), columns=("Tgt", "Tgt+Edited", "Tgt+Oracle"))
+    write_hand_made_results(config, {"Tgt": [10.0, 20.0], "Tgt+Oracle": [7.0, 9.0]})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh,friction", "--columns", "Tgt,Tgt+Edited,Tgt+Oracle",
+               "--seeds", "0,1", "--steps", "10", "--eval-every", "10", "--eval-episodes", "1",
+               "--transitions", "200", "--store", config.store, "--cache", config.cache, "--compact"]
+    assert main(["bench", "report", *options]) == 0
+    table = capsys.readouterr().out.split("\n\n")[0].splitlines()
+    assert table[0] == "| task | Tgt | Tgt+Edited | Tgt+Oracle |"
+    # Tgt is one cell per target: in full on the first line, its mean on the next; the paper prints no oracle.
+    assert table[2] == ("| halfcheetah medium-replay thigh | 15.0 ± 5.0 [-48.5, 78.5] (26.2) | not run (33.0) "
+                        "| 8.0 ± 1.0 [-4.7, 20.7] |")
+    assert table[3] == "| halfcheetah medium-replay friction | 15.0 (26.2) | not run (31.8) | 8.0 ± 1.0 [-4.7, 20.7] |"
+    assert len(table) == 4
+
+
 def test_the_paper_s_cells_sum_to_its_printed_totals():
     from xted.pipelines.bench.paper import _TABLES, PAPER_COLUMNS, PRINTED_TOTALS, paper_cell
 

@@ -193,6 +193,9 @@ def report_grid(
                                 "(mean ± std over seeds at every evaluation)."),
     paper: bool = typer.Option(False, "--paper", help="Under each line of the table the paper's cells "
                                "(its Tables 1 and 2, IQL), and the paper's totals over the same rows."),
+    compact: bool = typer.Option(False, "--compact", help="The table one line per task, each cell "
+                                 "mean ± std [95% interval] (the paper's mean), as README and BENCHMARKS.md show it; "
+                                 "no gains, totals or paper lines."),
     cost: bool = typer.Option(False, "--cost", help="Also print the wall-clock hours each group of "
                               "seeds, edit, oracle and bench-trained prior took (the JSON always has them)."),
 ) -> None:
@@ -202,8 +205,8 @@ def report_grid(
     from xted.pipelines.bench.edit_quality import markdown as edit_quality_markdown
     from xted.pipelines.bench.edit_quality import read_rows as edit_quality_rows
     from xted.pipelines.bench.grid import plan
-    from xted.pipelines.bench.report import (aggregate, aggregate_markdown, cost_markdown, cost_rows, curves_markdown,
-                                             markdown, table_rows)
+    from xted.pipelines.bench.report import (aggregate, aggregate_markdown, compact_markdown, cost_markdown, cost_rows,
+                                             curves_markdown, markdown, table_rows)
 
     if png is not None:
         from xted.viz.plots import check_png_path
@@ -219,7 +222,8 @@ def report_grid(
                                **({"edit_quality": [{**row, "targets": checked(row)} for row in quality]}
                                   if edit_quality else {})}))
     else:
-        sections = [markdown(rows, paper), aggregate_markdown(rows), curves_markdown(rows) if curves else "",
+        sections = [compact_markdown(rows) if compact else markdown(rows, paper), aggregate_markdown(rows),
+                    curves_markdown(rows) if curves else "",
                     cost_markdown(cost_rows(grid)) if cost else "",
                     edit_quality_markdown(quality) if quality else ""]
         typer.echo("\n\n".join(section for section in sections if section))

@@ -143,6 +143,41 @@ def markdown(rows: list[dict], paper: bool = False) -> str:
     return "\n\n".join(sections)
 
 
+def compact_markdown(rows: list[dict]) -> str:
+    """One line per task (env, target, gap; the algo too where there are several), each cell mean ± std
+    [95% interval] with the paper's mean in brackets, "not run" where the store has no seed of it. A column of the
+    target's data alone (Tgt) is one cell per target: in full on its first line, its mean on the others."""
+    columns = list(dict.fromkeys(row["column"] for row in rows))
+    several_algos = len({row["algo"] for row in rows}) > 1
+    lines: dict[tuple, dict[str, dict]] = {}
+    for row in rows:
+        task = (row["env"], row["target"], row["gap"] or "(per target)", *((row["algo"],) if several_algos else ()))
+        lines.setdefault(task, {})[row["column"]] = row
+    out = ["| task | " + " | ".join(columns) + " |", "|" + "---|" * (len(columns) + 1)]
+    shown_in_full = set()
+    for task, found in lines.items():
+        cells = []
+        for column in columns:
+            per_target = (task[0], task[1], *task[3:], column) if COLUMNS[column].data == ("target",) else None
+            cells.append(_compact(found.get(column), repeated=per_target is not None and per_target in shown_in_full))
+            if found.get(column) is not None and found[column]["mean"] is not None:
+                shown_in_full.add(per_target)
+        out.append(f"| {' '.join(task)} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def _compact(cell: dict | None, repeated: bool) -> str:
+    if cell is None:
+        return MISSING
+    paper = f" ({cell['paper']['mean']:.1f})" if cell.get("paper") else ""
+    if cell["mean"] is None:
+        return "not run" + paper
+    if repeated:
+        return f"{cell['mean']:.1f}" + paper
+    interval = f" [{cell['ci95'][0]:.1f}, {cell['ci95'][1]:.1f}]" if cell.get("ci95") is not None else ""
+    return f"{cell['mean']:.1f} ± {cell['std']:.1f}{interval}" + paper
+
+
 def _table(rows: list[dict], labels: tuple[str, ...], paper: bool) -> str:
     columns = list(dict.fromkeys(row["column"] for row in rows))
     lines: dict[tuple, dict[str, dict]] = {}
