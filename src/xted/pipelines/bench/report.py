@@ -160,7 +160,7 @@ def compact_markdown(rows: list[dict]) -> str:
         for column in columns:
             per_target = (task[0], task[1], *task[3:], column) if COLUMNS[column].data == ("target",) else None
             cells.append(_compact(found.get(column), repeated=per_target is not None and per_target in shown_in_full))
-            if found.get(column) is not None and found[column]["mean"] is not None:
+            if per_target is not None and found.get(column) is not None and found[column]["mean"] is not None:
                 shown_in_full.add(per_target)
         out.append(f"| {' '.join(task)} | " + " | ".join(cells) + " |")
     return "\n".join(out)
