@@ -732,6 +732,29 @@ def test_a_learner_trained_on_data_its_data_cell_no_longer_records_is_flagged_an
     assert [[c.key for c in group] for group in run.pending(plan(config))] == [[cell.key]]
 
 
+def test_an_edit_remade_in_other_bytes_is_one_more_make_and_its_learners_stay_current(tmp_path, fake, monkeypatch):
+    from xted.pipelines.bench.report import table_rows
+
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt+Edited",), seeds=(0,))
+    run_quietly(config)
+    (cell,) = plan(config).learners.values()
+    first = store.read_result(config.store, cell.data_cell)
+    # A fresh checkout (no cache) remakes the edit; another CPU rounds differently.
+    shutil.rmtree(config.cache)
+    monkeypatch.setattr(cells, "edited", lambda cell, source: dataclasses.replace(
+        source, rewards=shifted_edit(cell, source).rewards + np.float32(1e-3)))
+    computed = run_quietly(dataclasses.replace(config, seeds=(0, 1)))  # seed 1 reads the edit: remade
+    assert [name.startswith("edit-") for name in computed] == [True, False] and fake.calls[-1] == [1]
+    record = store.read_result(config.store, cell.data_cell)
+    assert record["data_fingerprint"] == first["data_fingerprint"] and len(record["remade"]) == 1
+    assert record["remade"][0]["data_fingerprint"] != first["data_fingerprint"] and record["remade"][0]["machine"]
+    assert store.current_result(config.store, cell) is not None
+    (row,) = table_rows(plan(config))
+    assert not row["trained_on_other_data"]
+    # The cache now holds the remake, which is one of the record's makes: used, not made a third time.
+    assert run.cached_data(plan(config), cell.data_cell).fingerprint() == record["remade"][0]["data_fingerprint"]
+
+
 @pytest.mark.parametrize("old, new", [
     (["--envs", "walker2d", "--report", "--json"], "`xted bench report --envs walker2d --json`"),
     (["--envs", "walker2d", "--columns", "Tgt"], "`xted bench run --envs walker2d --columns Tgt`"),

@@ -15,6 +15,8 @@ import dataclasses
 import functools
 import hashlib
 import importlib.metadata
+import os
+import platform
 import shutil
 import time
 from collections.abc import Callable, Sequence
@@ -84,7 +86,7 @@ def cached_data(grid: Grid, cell: DataCell) -> Dataset | None:
     record, path = store.read_result(grid.config.store, cell), store.data_path(grid.config.cache, cell)
     if record is not None and path.is_file():
         data = load(path)
-        if data.fingerprint() == record["data_fingerprint"]:
+        if data.fingerprint() in store.makes(record):
             return data
     return None
 
@@ -97,14 +99,38 @@ def make_data(cell: DataCell, source: Dataset, make: Callable[[DataCell, Dataset
 
 
 def keep_data(config: BenchConfig, cell: DataCell, data: Dataset, seconds: float) -> None:
-    """Cache made data and record it in the store (both atomically)."""
+    """Cache made data and record it in the store (both atomically). A cell recorded already (made on
+    another checkout, whose cache this one lacks) keeps its record: a remake in other bytes is added to
+    it as one more make, so the learners trained on the first stay current."""
     path = store.data_path(config.cache, cell)
     path.parent.mkdir(parents=True, exist_ok=True)
     save(data, path)
-    store.write_result(config.store, cell, {
-        "kind": cell.kind, "env": cell.env, "target": cell.target, "gap": cell.gap,
-        "data_fingerprint": data.fingerprint(), "transitions": len(data), "seconds": seconds,
-        "versions": library_versions()})
+    make = {"data_fingerprint": data.fingerprint(), "seconds": seconds, "versions": library_versions(),
+            "machine": machine()}
+    record = store.read_result(config.store, cell)
+    if record is None:
+        record = {"kind": cell.kind, "env": cell.env, "target": cell.target, "gap": cell.gap,
+                  "transitions": len(data), **make}
+    elif make["data_fingerprint"] in store.makes(record):
+        return
+    else:
+        record = {**record, "remade": [*record.get("remade", ()), make]}
+    store.write_result(config.store, cell, record)
+
+
+def machine() -> str:
+    """The CPU a data cell was made on (its float reductions decide the made data's last bits)."""
+    return f"{platform.machine()} {cpu_model()} x{os.cpu_count()}"
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
 
 
 def kept_prior(config: BenchConfig, cell: PriorCell) -> Path:

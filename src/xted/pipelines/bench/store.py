@@ -40,14 +40,20 @@ def write_result(store: str | Path, cell: Cell, result: dict) -> Path:
     return path
 
 
+def makes(record: dict) -> list[str]:
+    """The fingerprints of every make a data cell's record holds: the first, then each remake that
+    came out in other bytes (the same inputs on another machine: XLA's float reductions differ by CPU)."""
+    return [record["data_fingerprint"], *(remade["data_fingerprint"] for remade in record.get("remade", ()))]
+
+
 def trained_on_other_data(store: str | Path, cell: LearnerCell, result: dict) -> bool:
-    """Whether a learner's stored result was trained on data other than what its data cells record
-    now (a data cell remade since, differently): such a result is flagged and recomputed."""
+    """Whether a learner's stored result was trained on data that none of its data cells' recorded
+    makes is (a data cell whose record was replaced since): such a result is flagged and recomputed."""
     recorded = result.get("training_data")
     for position, ref in enumerate(cell.training):
         if isinstance(ref, DataCell) and recorded is not None:
             made = read_result(store, ref)
-            if made is not None and recorded[position] != made["data_fingerprint"]:
+            if made is not None and recorded[position] not in makes(made):
                 return True
     return False
 
