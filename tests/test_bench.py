@@ -324,6 +324,12 @@ def test_prior_set_changes_the_trained_prior_of_its_env_only():
     assert both["walker2d"].key == scoped["walker2d"].key and both["halfcheetah"].key != default["halfcheetah"].key
     assert {c.data_cell.key for c in plan(config).learners.values()} != {
         c.data_cell.key for c in plan(dataclasses.replace(config, prior_overrides=("cross_blocks=2",))).learners.values()}
+    # Beside a target whose prior is shipped, the override changes the trained ones and leaves the shipped one.
+    mixed = plan(dataclasses.replace(config, envs=("walker2d",), targets=("medium-replay", "medium"),
+                                     prior_overrides=("walker2d:cross_blocks=2",)))
+    by_target = {c.target: c.data_cell for c in mixed.learners.values()}
+    assert by_target["medium-replay"].prior_cell is None and by_target["medium-replay"].prior.endswith("-cpu")
+    assert by_target["medium"].prior_cell.key == scoped["walker2d"].key
 
 
 def test_projected_edits_are_keyed_apart_and_projected_onto_a_model_of_the_row_s_target(tmp_path, monkeypatch):

@@ -100,7 +100,8 @@ def grid_config(
                                      help="Preset of a prior the bench trains: cpu or paper."),
     prior_overrides: List[str] = typer.Option(
         [], "--prior-set", help="PriorConfig override of a prior the bench trains: FIELD=VALUE for every env, "
-        "ENV:FIELD=VALUE for one (repeatable; xted train --set's fields)."),
+        "ENV:FIELD=VALUE for one (repeatable; xted train --set's fields). Targets with a shipped or given "
+        "prior keep it."),
     ser_steps: int = typer.Option(DEFAULTS.ser_steps, "--ser-steps", min=1,
                                   help="Training steps of the Tgt SER column's transition diffusion model."),
     transitions: Optional[int] = typer.Option(DEFAULTS.transitions, "--transitions", min=1,

@@ -368,19 +368,23 @@ def plan(config: BenchConfig) -> Grid:
                 rows.append(Row(env, target_level, gap, column.name, algo, tuple(cells)))
 
     columns = [COLUMNS[name] for name in config.columns]
+    # Shipped or given priors (None: the bench trains that target's prior).
+    resolved = ({(env, level): resolve_prior(config, env, level) for env in config.envs for level in config.targets}
+                if any(column.needs_prior for column in columns) else {})
+    for env in config.envs:
+        kept = [prior for (prior_env, _), prior in resolved.items() if prior_env == env]
+        if config.prior_overrides_for(env) and kept and all(prior is not None for prior in kept):
+            raise InputError(
+                f"--prior-set {' '.join(config.prior_overrides_for(env))}: {env}'s targets edit with the priors "
+                f"{', '.join(prior.name for prior in kept)} (shipped or given), which the bench does not train, and "
+                "--prior-set changes only the priors it trains; add a target without a shipped prior to --targets, or "
+                "train that prior (xted train --set) and pass it with --prior")
     for env in config.envs:
         for target_level in config.targets:
             target = f"{env}-{target_level}"
             prior: Path | PriorCell | None = None
-            if any(column.needs_prior for column in columns):
-                prior = resolve_prior(config, env, target_level)
-                if prior is not None and config.prior_overrides_for(env):
-                    raise InputError(
-                        f"--prior-set {' '.join(config.prior_overrides_for(env))}: {target} edits with the prior {prior.name} "
-                        "(shipped or given), which the bench does not train, and --prior-set changes only the priors it "
-                        f"trains; leave {target_level} out of --targets, or train that prior (xted train --set) and "
-                        "pass it with --prior")
-                prior = prior or prior_cell(env, target_level)
+            if resolved:
+                prior = resolved[env, target_level] or prior_cell(env, target_level)
             made: dict[tuple[str, str | None], DataCell] = {}
 
             def made_once(kind: str, gap: str | None) -> DataCell:
