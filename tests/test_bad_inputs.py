@@ -33,7 +33,7 @@ from conftest import build_dataset
 import xted
 from xted.cli.main import main
 from xted.data import formats, shipped
-from xted.diffusion.guard import TARGET_MODEL_FILE
+from xted.diffusion.guard import ENSEMBLE_FILE, TARGET_MODEL_FILE
 
 DOC = Path(__file__).parent.parent / "docs" / "bad_inputs.md"
 HC_PRIOR = "halfcheetah-medium-replay-cpu"
@@ -132,7 +132,8 @@ def _online_run(ws: Path) -> Path:
 
 def _fake_prior(ws: Path, corrupt: str | None) -> str:
     """A copy of the shipped prior, with one file spoiled: ``record`` (prior.json), ``params``,
-    ``target_model`` (the guard's), ``no_target_model`` (it removed: a prior from before the guard) or None."""
+    ``target_model`` (the guard's), ``no_target_model`` (it removed: a prior from before the guard),
+    ``ensemble`` (the guard's ensemble), ``no_ensemble`` (it removed: a prior from before it) or None."""
     import shutil
 
     folder = ws / "prior"
@@ -140,13 +141,18 @@ def _fake_prior(ws: Path, corrupt: str | None) -> str:
     if corrupt == "record":
         (folder / "prior.json").write_text("{ not json")
     elif corrupt == "params":
-        params = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != "prior.json")
+        params = sorted(p for p in folder.rglob("*")
+                        if p.is_file() and p.name not in ("prior.json", TARGET_MODEL_FILE, ENSEMBLE_FILE))
         biggest = max(params, key=lambda p: p.stat().st_size)
         biggest.write_bytes(biggest.read_bytes()[:100])
     elif corrupt == "target_model":
         (folder / TARGET_MODEL_FILE).write_bytes((folder / TARGET_MODEL_FILE).read_bytes()[:100])
     elif corrupt == "no_target_model":
         (folder / TARGET_MODEL_FILE).unlink()
+    elif corrupt == "ensemble":
+        (folder / ENSEMBLE_FILE).write_bytes((folder / ENSEMBLE_FILE).read_bytes()[:100])
+    elif corrupt == "no_ensemble":
+        (folder / ENSEMBLE_FILE).unlink()
     return str(folder)
 
 
@@ -282,6 +288,15 @@ CASES = [
     Case("edit-negative-guard-margin", "--guard-margin -1",
          lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100),
                      "--out", str(ws / "o.npz"), "--guard-margin", "-1"], "guard_margin must be >= 0"),
+    Case("edit-negative-guard-disagreement", "--guard-disagreement -1",
+         lambda ws: ["edit", "--prior", _shipped_prior(), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz"), "--guard-disagreement", "-1"], "guard_disagreement must be >= 0"),
+    Case("edit-disagreement-without-ensemble", "--guard-disagreement 0.5 with a prior that holds no ensemble",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "no_ensemble"), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz"), "--guard-disagreement", "0.5"], "ensemble"),
+    Case("edit-corrupt-ensemble", "a prior whose guard ensemble file is truncated",
+         lambda ws: ["edit", "--prior", _fake_prior(ws, "ensemble"), "--source", _halfcheetah_like(ws, "s.npz", 100),
+                     "--out", str(ws / "o.npz")], "unreadable target model ensemble"),
     Case("train-one-step-episodes", "train a prior on one-step episodes",
          lambda ws: ["train", "--target", _tiny(ws, lengths=(1,) * 40), "--out", str(ws / "p"), "--steps", "1"],
          "horizon"),

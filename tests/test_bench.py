@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -644,6 +645,20 @@ def test_the_guarded_columns_edit_with_the_guard_and_are_keyed_apart_from_the_pl
     assert not plain.edit.guard and guarded.edit.guard and guarded.key != plain.key
     assert by_column["Tgt+Guarded DARA"].data_cell.key == guarded.key
     assert "guard" not in plain.inputs["edit"] and "target_model" in guarded.inputs
+    assert "guard_disagreement" not in guarded.inputs["edit"] and "target_ensemble" not in guarded.inputs
+    # The disagreement test (opt-in) keys its guarded edit apart, by the ensemble too; the plain edit keeps its key.
+    strict = {cell.column: cell.data_cell for cell in plan(dataclasses.replace(
+        config, edit=("guard_disagreement=0.5",))).learners.values()}
+    assert strict["Tgt+Edited"].key == plain.key and strict["Tgt+Guarded"].key != guarded.key
+    assert strict["Tgt+Guarded"].inputs["edit"]["guard_disagreement"] == 0.5
+    assert "target_ensemble" in strict["Tgt+Guarded"].inputs
+
+
+def test_the_committed_guarded_cells_keep_their_keys():
+    committed = BenchConfig(columns=("Tgt+Guarded",), seeds=(0, 1, 2, 3, 4),
+                            store=str(Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "bench"))
+    cells = plan(committed).learners.values()
+    assert len(cells) == 30 and all(store.current_result(committed.store, cell) is not None for cell in cells)
 
 
 def test_the_filter_columns_wrap_iql_with_each_env_s_keep_share_and_are_keyed_by_their_own_settings(tmp_path):

@@ -13,7 +13,8 @@ from test_diffusion import TINY
 from test_editor import BATCH, LENGTHS, random_prior
 
 from xted.diffusion import EditConfig, edit_dataset
-from xted.diffusion.guard import TargetModel, fit_target_model, judge_windows, window_means
+from xted.diffusion.guard import (ENSEMBLE_FILE, TARGET_MODEL_FILE, TargetModel, fit_target_model, judge_windows,
+                                  required_gain, window_means)
 from xted.envs.termination import termination
 from xted.errors import InputError
 from xted.nn import MLP, FittedMLP
@@ -50,16 +51,16 @@ def test_judge_windows_keeps_an_edit_only_inside_the_support_valid_and_with_a_ga
     edited = np.array([0.2, 0.95, 0.2, 0.2, 0.2, 0.2])
     outside = np.array([False, False, True, False, True, True])
     invalid = np.array([False, False, False, True, False, False])
-    verdict = judge_windows(source, edited, outside, invalid, resolution=0.1, margin=1.0, outside_action="keep")
+    verdict = judge_windows(source, edited, outside, invalid, needed=0.1, outside_action="keep")
     assert verdict.edit.tolist() == [True, False, False, False, False, False]
     assert not verdict.drop.any()
     assert verdict.counts == {"windows": 6, "edited": 1, "source_outside_support": 3, "dropped_outside_support": 0,
                               "source_invalid_edit": 1, "source_no_gain": 1}
-    dropped = judge_windows(source, edited, outside, invalid, 0.1, 1.0, "drop")
+    dropped = judge_windows(source, edited, outside, invalid, 0.1, "drop")
     assert dropped.drop.tolist() == outside.tolist() and dropped.counts["dropped_outside_support"] == 3
-    anyway = judge_windows(source, edited, outside, invalid, 0.1, 1.0, "edit")
+    anyway = judge_windows(source, edited, outside, invalid, 0.1, "edit")
     assert anyway.edit.tolist() == [True, False, True, False, True, True]
-    wide = judge_windows(source, edited, outside, invalid, 0.1, 9.0, "edit")  # a gain of 0.8 < 9 x 0.1
+    wide = judge_windows(source, edited, outside, invalid, 0.9, "edit")  # a gain of 0.8 < 0.9
     assert not wide.edit.any() and wide.counts["source_no_gain"] == 5
 
 
@@ -157,6 +158,52 @@ def test_the_fitted_target_model_learns_the_targets_dynamics_and_round_trips(tmp
     assert again.resolution == model.resolution and TargetModel.load(tmp_path / "none") is None
 
 
+def test_the_required_gain_adds_the_windows_disagreement_only_where_asked():
+    assert required_gain(0.2, 1.5) == pytest.approx(0.3)
+    np.testing.assert_allclose(required_gain(0.2, 1.0, 0.5, np.array([0.0, 1.0, 4.0])), [0.2, 0.7, 2.2])
+    verdict = judge_windows(np.ones(3), np.full(3, 0.5), np.zeros(3, bool), np.zeros(3, bool),
+                            required_gain(0.2, 1.0, 0.5, np.array([0.0, 1.0, 4.0])), "keep")
+    assert verdict.edit.tolist() == [True, False, False] and verdict.counts["source_no_gain"] == 2
+
+
+def test_the_ensemble_disagrees_off_the_target_data_and_leaves_the_models_own_file_as_it_was(tmp_path):
+    data = build_dataset(lengths=(40,) * 10, obs_dim=3, act_dim=2, seed=3)
+    data = dataclasses.replace(data, next_observations=data.observations + 0.5 * np.tanh(data.actions[:, :1]))
+    alone, ensemble = fit_target_model(data, seed=0), fit_target_model(data, seed=0, members=2)
+    assert len(ensemble.members) == 2 and ensemble.resolution == alone.resolution
+    with pytest.raises(InputError, match="ensemble"):
+        alone.disagreement(data.observations, data.actions)
+    inside = ensemble.disagreement(data.observations, data.actions)
+    outside = ensemble.disagreement(data.observations + 20.0, data.actions)
+    assert inside.shape == (len(data),) and outside.mean() > 10 * inside.mean() > 0
+    alone.save(tmp_path / "alone")
+    ensemble.save(tmp_path / "ensemble")
+    assert not (tmp_path / "alone" / ENSEMBLE_FILE).exists()
+    assert (tmp_path / "alone" / TARGET_MODEL_FILE).read_bytes() == (tmp_path / "ensemble" / TARGET_MODEL_FILE).read_bytes()
+    again = TargetModel.load(tmp_path / "ensemble")
+    np.testing.assert_array_equal(again.disagreement(data.observations, data.actions), inside)
+
+
+def test_the_disagreement_test_reverts_edits_the_ensemble_cannot_judge(prior):
+    """A far-off source the model alone says every edit improves: a large enough weight on the
+    ensemble's disagreement there keeps the source; weight 0 is the guard as before."""
+    source = source_following(np.zeros(3), shift=50.0)
+    target = build_dataset(lengths=LENGTHS, obs_dim=3, act_dim=2, seed=4)
+    target = dataclasses.replace(target, next_observations=target.observations + 0.5 * np.tanh(target.actions[:, :1]))
+    edit = EditConfig(batch_size=BATCH)
+    with pytest.raises(InputError, match="ensemble"):
+        edit_dataset(prior, source, dataclasses.replace(edit, guard_disagreement=1.0),
+                     target_model=fit_target_model(target))
+    model = fit_target_model(target, members=2)
+    base, base_report = edit_dataset(prior, source, edit, target_model=model)
+    before, _ = edit_dataset(prior, source, edit, target_model=dataclasses.replace(model, members=()))
+    np.testing.assert_array_equal(base.next_observations, before.next_observations)
+    assert base_report["guard"]["edited"] > 0 and base_report["guard"]["source_disagreement"] is None
+    strict, report = edit_dataset(prior, source, dataclasses.replace(edit, guard_disagreement=1e6), target_model=model)
+    assert report["guard"]["edited"] == 0 and report["guard"]["source_disagreement"] > 0
+    np.testing.assert_array_equal(strict.next_observations, source.next_observations)
+
+
 def test_the_diagnosis_chooses_a_kappa_where_edits_gain_and_none_where_the_source_is_already_right(prior):
     from xted.diffusion.diagnosis import diagnose_edit
 
@@ -187,3 +234,15 @@ def test_transition_validity_counts_what_breaks_the_targets_rules():
     unknown = transition_validity(data, None, target=data.select_episodes([0]))
     assert unknown["unflagged_terminal"] is None and unknown["actions_outside"] >= 0
     assert unknown["states_outside_target_range"] > 0
+
+
+@pytest.mark.parametrize("env", ["halfcheetah", "walker2d"])
+def test_the_shipped_priors_hold_the_guards_ensemble(env):
+    from xted.data import load, shipped
+    from xted.diffusion.guard import ENSEMBLE_MEMBERS
+
+    model = TargetModel.load(shipped.prior_dir(f"{env}-medium-replay-cpu"))
+    target = load(f"{env}-medium-replay")
+    assert len(model.members) == ENSEMBLE_MEMBERS
+    on_target = model.disagreement(target.observations[:500], target.actions[:500]).mean()
+    assert 0 < on_target < model.resolution

@@ -181,7 +181,7 @@ class PriorConfig(DenoiserConfig):
 
 
 OUTSIDE_SUPPORT = ("keep", "drop", "edit")
-GUARD_FIELDS = ("guard", "guard_margin", "support_z", "outside_support")
+GUARD_FIELDS = ("guard", "guard_margin", "guard_disagreement", "support_z", "outside_support")
 
 
 @dataclass(frozen=True)
@@ -221,6 +221,9 @@ class EditConfig:
                                 "window (false: the paper's plain edit).")
     guard_margin: float = setting(1.0, "The gain an edited window must show, in units of the target model's "
                                        "resolution.")
+    guard_disagreement: float = setting(0.0, "Also ask the gain to exceed this x the window's disagreement of the "
+                                             "target model's ensemble (0: off; the ensemble: the prior's, or fitted "
+                                             "to the target data given).")
     support_z: float = setting(10.0, "A source window with a state more than this many target standard deviations "
                                      "from the target's mean lies beyond the prior's support.")
     outside_support: str = setting("keep", "Windows beyond the support: keep (the source's, unedited), drop (left "
@@ -243,6 +246,7 @@ class EditConfig:
             (0.0 <= self.dynamics_weight <= 1.0, f"dynamics_weight must be in [0, 1], got {self.dynamics_weight}"),
             (self.eta == 0.0 or self.sampler == "ddim", "eta is for the ddim sampler only"),
             (self.guard_margin >= 0, f"guard_margin must be >= 0, got {self.guard_margin}"),
+            (self.guard_disagreement >= 0, f"guard_disagreement must be >= 0, got {self.guard_disagreement}"),
             (self.support_z > 0, f"support_z must be > 0, got {self.support_z}"),
             (self.outside_support in OUTSIDE_SUPPORT,
              f"outside_support must be one of {list(OUTSIDE_SUPPORT)}, got {self.outside_support!r}"),

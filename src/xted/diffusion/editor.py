@@ -37,7 +37,7 @@ from xted.data import Dataset, check_dimensions
 from xted.data.windows import EpisodeTiling, tile_episodes, warn_if_one_long_episode
 from xted.diffusion.config import DenoiserConfig, EditConfig
 from xted.diffusion.denoiser import Denoiser, apply_inverse
-from xted.diffusion.guard import GuardVerdict, TargetModel, judge_windows, verdict_line, window_means
+from xted.diffusion.guard import GuardVerdict, TargetModel, judge_windows, required_gain, verdict_line, window_means
 from xted.diffusion.prior import Prior
 from xted.diffusion.schedule import (
     Schedule,
@@ -348,6 +348,10 @@ def _checked_edit(prior: Prior, source: Dataset, config: EditConfig, noise_steps
                          "none (trained before xted fitted one): give the target data (xted edit --target, "
                          "Prior.edit(target=...)), or edit without the guard (--no-guard, guard=False: the paper's "
                          "plain edit)")
+    if config.guard and noise_steps > 0 and config.guard_disagreement > 0 and not guard_model.members:
+        raise InputError(f"guard_disagreement {config.guard_disagreement} needs the target model's ensemble, and the "
+                         f"prior {prior.path} holds none: give the target data (xted edit --target, "
+                         "Prior.edit(target=...)) to fit it, or leave guard_disagreement at 0")
     return guard_model
 
 
@@ -422,9 +426,13 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
     inside = (farthest <= config.support_z)[windows]
     rule = termination or termination_rule(prior.env)
     wrong_flag = np.zeros(len(t), bool) if rule is None else rule(edited["next_observations"]) != source.terminals[t]
+    disagreement = None
+    if config.guard_disagreement > 0:
+        disagreement = window_means(model.disagreement(source.observations[t], source.actions[t]), windows, n_windows)
     verdict = judge_windows(window_means(source_error, windows, n_windows), window_means(edited_error, windows, n_windows),
                             farthest > config.support_z, np.bincount(windows, wrong_flag, n_windows) > 0,
-                            model.resolution, config.guard_margin, config.outside_support)
+                            required_gain(model.resolution, config.guard_margin, config.guard_disagreement, disagreement),
+                            config.outside_support)
     kept = verdict.edit[windows]
     guarded_error = np.where(kept, edited_error, source_error)
     low, high = action_bounds(prior.env) or (model.action_low, model.action_high)
@@ -441,6 +449,7 @@ def _guard(prior: Prior, source: Dataset, next_observations: np.ndarray, tiling:
         "source_error_inside_support": float(source_error[inside].mean()) if inside.any() else None,
         "guarded_error_inside_support": float(guarded_error[inside].mean()) if inside.any() else None,
         "resolution": model.resolution,
+        "source_disagreement": None if disagreement is None else float(disagreement.mean()),
     }
     report["verdict"] = verdict_line(verdict.counts, report["source_error"], model.resolution)
     return report, edited, verdict

@@ -19,7 +19,7 @@ from xted.fields import known_fields
 from xted.data import Dataset, Normalizer, shipped
 from xted.diffusion.config import EditConfig, PriorConfig
 from xted.diffusion.denoiser import Denoiser
-from xted.diffusion.guard import TargetModel, fit_target_model
+from xted.diffusion.guard import TargetModel, fit_for_edit
 from xted.diffusion.schedule import Schedule, cosine_schedule
 from xted.errors import InputError
 from xted.jsonfiles import read_json
@@ -74,7 +74,7 @@ class Prior:
         from xted.diffusion.editor import edit_dataset
 
         config = EditConfig(kappa=kappa, seed=seed, **known_fields(EditConfig, fields))
-        model = None if target is None or not config.guard else fit_target_model(target, seed=seed)
+        model = None if target is None or not config.guard else fit_for_edit(target, config.guard_disagreement, seed)
         edited, report = edit_dataset(self, source, config, progress, dynamics, model, termination)
         return edited.with_metadata(edit={**edited.metadata["edit"], "report": report})
 

@@ -23,7 +23,7 @@ from xted.data import Dataset, Normalizer, check_dimensions
 from xted.data.windows import WindowSampler, warn_if_one_long_episode, window_index
 from xted.diffusion.checkpoint import checkpoint_manager, prepare_out_dir, read_log, write_log
 from xted.diffusion.config import PriorConfig
-from xted.diffusion.guard import TargetModel, fit_target_model
+from xted.diffusion.guard import ENSEMBLE_MEMBERS, TargetModel, fit_target_model
 from xted.diffusion.objective import init_train_state, make_train_step
 from xted.diffusion.prior import FORMAT, normalize_returns
 from xted.progress import restart_rate
@@ -152,5 +152,5 @@ def train_prior_folder(
         manager.wait_until_finished()
         manager.close()
     if TargetModel.load(out_dir) is None:  # written once training is complete
-        fit_target_model(target_dataset, seed=config.seed, progress=progress).save(out_dir)
+        fit_target_model(target_dataset, seed=config.seed, progress=progress, members=ENSEMBLE_MEMBERS).save(out_dir)
     return out_dir

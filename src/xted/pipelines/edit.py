@@ -12,7 +12,7 @@ from xted.analysis.proxy import DynamicsProxy
 from xted.data import Dataset
 from xted.diffusion.config import EditConfig
 from xted.diffusion.editor import edit_dataset
-from xted.diffusion.guard import fit_target_model
+from xted.diffusion.guard import fit_for_edit
 from xted.diffusion.prior import Prior
 from xted.envs.step_function import StepFunction
 from xted.envs.termination import Termination
@@ -36,7 +36,7 @@ def edit_source(prior: Prior, source: Dataset, config: EditConfig, *, guard_targ
         dynamics = fit_proxy(project_onto, dynamics_proxy or ProxyConfig(seed=config.seed), progress=progress).predict
     target_model = None
     if guard_target is not None and config.guard:
-        target_model = fit_target_model(guard_target, seed=config.seed)
+        target_model = fit_for_edit(guard_target, config.guard_disagreement, seed=config.seed)
     edited, report = edit_dataset(prior, source, config, progress=progress,
                                   dynamics=dynamics,
                                   target_model=target_model, termination=termination)

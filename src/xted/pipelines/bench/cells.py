@@ -29,7 +29,8 @@ def edited(cell: DataCell, source: Dataset) -> Dataset:
     if cell.dynamics is not None:
         dynamics_target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
     guard_target = None
-    if cell.edit.guard and prior.target_model is None:  # a prior from before the guard: fit its model here
+    if cell.edit.guard and (prior.target_model is None  # a prior from before the guard (or its ensemble): fit here
+                            or cell.edit.guard_disagreement > 0 and not prior.target_model.members):
         guard_target = load(f"{cell.env}-{cell.target}")
     data, _ = edit_source(prior, source, cell.edit, guard_target=guard_target, project_onto=dynamics_target,
                           dynamics_proxy=None if cell.dynamics is None else cell.dynamics.proxy)

@@ -31,7 +31,7 @@ from xted.data.augment import S4RL_STATE_STD
 from xted.diffusion.config import GUARD_FIELDS, EditConfig, PriorConfig
 from xted.diffusion.config import preset as prior_preset
 from xted.diffusion.config import presets as prior_presets
-from xted.diffusion.guard import TARGET_MODEL_FILE
+from xted.diffusion.guard import ENSEMBLE_FILE, TARGET_MODEL_FILE
 from xted.diffusion.prior import read_prior_json
 from xted.diffusion.transitions import TransitionModelConfig
 from xted.envs import ENV_IDS, PAPER_GAPS, check_same_env, parse_domain
@@ -61,9 +61,9 @@ def cell_key(inputs: dict) -> str:
 
 def folder_fingerprint(folder: Path) -> str:
     """SHA-256 of every file's relative path and bytes: exact identity of a prior folder, less its
-    guard's target model (a plain edit never reads it; a guarded edit's key names it apart)."""
+    guard's target model and ensemble (a plain edit never reads them; a guarded edit's key names them apart)."""
     digest = hashlib.sha256()
-    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != TARGET_MODEL_FILE):
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() and p.name not in (TARGET_MODEL_FILE, ENSEMBLE_FILE)):
         digest.update(str(path.relative_to(folder)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
@@ -230,8 +230,9 @@ def check_names(config: BenchConfig) -> None:
 
 def edit_identity(edit: EditConfig, projected: bool) -> dict:
     """What makes two of the bench's edits the same: the edit config, without ``dynamics_weight``
-    where the edit is not projected (the weight changes nothing then), and without ``hold_first``
-    where it holds (cells keyed before either field existed keep their keys)."""
+    where the edit is not projected (the weight changes nothing then), without ``hold_first``
+    where it holds and without ``guard_disagreement`` where it is off (cells keyed before those
+    fields existed keep their keys)."""
     fields = {**dataclasses.asdict(edit), "hold_last": False}  # a field since removed, still in every edit's key
     if not projected:
         fields.pop("dynamics_weight")
@@ -240,6 +241,8 @@ def edit_identity(edit: EditConfig, projected: bool) -> dict:
     if not edit.guard:  # the plain edit, keyed as before the guard existed
         for name in GUARD_FIELDS:
             fields.pop(name)
+    elif edit.guard_disagreement == 0:  # the guard as keyed before its disagreement test existed
+        fields.pop("guard_disagreement")
     return fields
 
 
@@ -317,9 +320,11 @@ def plan(config: BenchConfig) -> Grid:
             inputs = {"kind": kind, "source": fingerprint(source), "prior": identity,
                       "edit": edit_identity(this_edit, projected)}
             if this_edit.guard and trained is None:  # a bench-trained prior's key covers its target model
-                shipped_model = prior / TARGET_MODEL_FILE
-                inputs["target_model"] = (hashlib.sha256(shipped_model.read_bytes()).hexdigest() if shipped_model.is_file()
-                                          else {"fitted_to": fingerprint(f"{env}-{target}")})
+                for name, file in (("target_model", TARGET_MODEL_FILE), ("target_ensemble", ENSEMBLE_FILE)):
+                    if name == "target_model" or this_edit.guard_disagreement > 0:
+                        shipped_model = prior / file
+                        inputs[name] = (hashlib.sha256(shipped_model.read_bytes()).hexdigest() if shipped_model.is_file()
+                                        else {"fitted_to": fingerprint(f"{env}-{target}")})
             if projected:
                 dynamics = DynamicsModel(f"{env}-{target}", config.transitions,
                                          ProxyConfig(steps=config.dynamics_proxy_steps, seed=edit.seed))
