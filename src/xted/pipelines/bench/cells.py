@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from xted.data import Dataset, load
+from xted.data import Dataset, load, split_heldout
 from xted.data.augment import gaussian_copy
 from xted.diffusion.transitions import TransitionModelConfig, sample_transitions, train_transition_model
 from xted.diffusion.prior import load_prior
@@ -29,9 +29,13 @@ def edited(cell: DataCell, source: Dataset) -> Dataset:
     if cell.dynamics is not None:
         dynamics_target = first_transitions(load(cell.dynamics.target), cell.dynamics.transitions)
     guard_target = None
-    if cell.edit.guard and (prior.target_model is None  # a prior from before the guard (or its ensemble): fit here
-                            or cell.edit.guard_disagreement > 0 and not prior.target_model.members):
+    if cell.edit.guard and prior.target_model is None:  # a prior from before the guard: fit its model here
         guard_target = load(f"{cell.env}-{cell.target}")
+    elif cell.edit.guard and cell.edit.guard_disagreement > 0 and not prior.target_model.members:
+        # A prior from before the ensemble: fitted as its training would have, to the episodes it trained on.
+        guard_target = load(f"{cell.env}-{cell.target}")
+        if cell.prior_cell is not None:
+            guard_target, _ = split_heldout(guard_target, cell.prior_cell.heldout_episodes)
     data, _ = edit_source(prior, source, cell.edit, guard_target=guard_target, project_onto=dynamics_target,
                           dynamics_proxy=None if cell.dynamics is None else cell.dynamics.proxy)
     return data
