@@ -361,7 +361,7 @@ CASES = [
     Case("policy-filter-keep-share", "OTDF keeping a share above 1 of each batch's source",
          lambda ws: ["policy", "--algo", "otdf", "--target", _halfcheetah_like(ws, "t.npz", 100), *POLICY_QUICK,
                      "--set", "keep_fraction=1.5"], "keep_fraction"),
-    Case("bench-prior-set-shipped-prior", "bench --prior-set where every target of its env has a shipped prior (never trained by it)",
+    Case("bench-prior-set-shipped-prior", "bench --prior-set where each target of the env has a shipped prior (never trained)",
          lambda ws: ["bench", "run", "--envs", "walker2d", "--columns", "Tgt+Edited", "--prior-set",
                      "walker2d:cross_blocks=2", "--store", str(ws / "s")], "changes only the priors it trains"),
     Case("bench-filter-unknown-field", "bench --set igdf.FIELD=VALUE with a field IGDF does not have",
