@@ -75,10 +75,12 @@ def aggregate(rows: list[dict]) -> list[dict]:
     and beside P(improvement) the paper's form of the claim (``mean_comparison``)."""
     out = []
     for algo in dict.fromkeys(row["algo"] for row in rows):
-        scores = {}
+        scores, paper_means = {}, {}
         for row in rows:
             if row["algo"] == algo and row["scores"]:
                 scores.setdefault(row["column"], {})[(row["env"], row["target"], row["gap"])] = row["scores"]
+            if row["algo"] == algo and row["paper"]:
+                paper_means.setdefault(row["column"], {})[(row["env"], row["target"], row["gap"])] = row["paper"]["mean"]
         for column, tasks in scores.items():
             out.append({"algo": algo, "measure": "IQM", "column": column, **iqm_interval(list(tasks.values()))})
         # Tgt's cell is one per target: the same scores on every gap's row and against a per-target column.
@@ -90,7 +92,8 @@ def aggregate(rows: list[dict]) -> list[dict]:
                 better_scores, baseline_scores = [scores[better][t] for t in shared], [against[t] for t in shared]
                 out.append({"algo": algo, "measure": "P(improvement)", "column": f"{better} > {baseline}",
                             **improvement_interval(better_scores, baseline_scores),
-                            **mean_comparison(better_scores, baseline_scores)})
+                            **mean_comparison(better_scores, baseline_scores),
+                            **paper_comparison(shared, paper_means.get(better, {}), paper_means.get(baseline, {}))})
     return out
 
 
@@ -104,16 +107,40 @@ def mean_comparison(better: list[list[float]], baseline: list[list[float]]) -> d
     return {"ahead": ahead, "total_gain": None if total == 0 else 100 * (sum(better_means) - total) / abs(total)}
 
 
+def paper_comparison(tasks: list[tuple], better: dict[tuple, float], baseline: dict[tuple, float]) -> dict:
+    """The paper's own cells in the form of :func:`mean_comparison`, over those of ``tasks`` where it
+    printed both columns: so a claim checked on part of the grid is set beside the paper's figure
+    on the same part, not its figure over all 18 tasks."""
+    printed = [task for task in tasks if task in better and _paper_baseline(task, baseline) is not None]
+    if not printed:
+        return {}
+    found = mean_comparison([[better[task]] for task in printed], [[_paper_baseline(task, baseline)] for task in printed])
+    return {"paper_tasks": len(printed), "paper_ahead": found["ahead"], "paper_total_gain": found["total_gain"]}
+
+
+def _paper_baseline(task: tuple, baseline: dict[tuple, float]) -> float | None:
+    """The paper's baseline cell of a task; a per-target column's (gap None) is compared with Tgt's on any gap."""
+    if task in baseline:
+        return baseline[task]
+    return next((mean for (env, target, _), mean in baseline.items() if task[2] is None and (env, target) == task[:2]),
+                None)
+
+
 def aggregate_markdown(rows: list[dict]) -> str:
-    """The aggregate block: one line per algo, measure and column."""
-    out = ["| algo | measure | column | value | 95% interval | tasks | mean ahead | total |",
-           "|---|---|---|---|---|---|---|---|"]
+    """The aggregate block: one line per algo, measure and column; beside each P(improvement) the
+    paper's count and total over the same tasks."""
+    out = ["| algo | measure | column | value | 95% interval | tasks | mean ahead | total | the paper, same tasks |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for row in aggregate(rows):
         low, high = row["ci95"]
         ahead = f"{row['ahead']}/{row['tasks']}" if "ahead" in row else ""
         total = "" if row.get("total_gain") is None else f"{row['total_gain']:+.1f}%"
+        paper = ""
+        if "paper_ahead" in row:
+            paper = f"{row['paper_ahead']}/{row['paper_tasks']}" + (
+                "" if row["paper_total_gain"] is None else f", {row['paper_total_gain']:+.1f}%")
         out.append(f"| {row['algo']} | {row['measure']} | {row['column']} | {row['value']:.2f} | "
-                   f"[{low:.2f}, {high:.2f}] | {row['tasks']} | {ahead} | {total} |")
+                   f"[{low:.2f}, {high:.2f}] | {row['tasks']} | {ahead} | {total} | {paper} |")
     return "\n".join(out)
 
 
