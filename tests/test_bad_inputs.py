@@ -56,6 +56,16 @@ def _tiny(ws: Path, name: str = "tiny.npz", **kwargs) -> str:
     return str(path)
 
 
+def _document(ws: Path, text: str, name: str = "notes.md") -> str:
+    (ws / name).write_text(text)
+    return str(ws / name)
+
+
+def _block(ws: Path, options: str) -> str:
+    """A report block over an empty store in the workspace, holding a stale table."""
+    return f"<!-- xted bench report --store {ws / 'store'} {options} -->\nold table\n<!-- end of the report -->\n"
+
+
 def _step_file(ws: Path, returns: str) -> str:
     """A user's step function file ``robot.py`` whose ``step`` returns ``returns``; its ``FILE:step`` name."""
     (ws / "robot.py").write_text(f"def step(observations, actions):\n    return {returns}\n")
@@ -409,6 +419,21 @@ CASES = [
                      "--store", str(ws / "store")], "is not an env in the grid"),
     Case("bench-prior-set-unknown-field", "bench --prior-set with a field PriorConfig does not have",
          lambda ws: ["bench", "report", "--prior-set", "wings=2", "--store", str(ws / "store")], "wings"),
+    Case("bench-refresh-no-block", "bench refresh of a markdown file without a report block",
+         lambda ws: ["bench", "refresh", _document(ws, "a table I wrote by hand\n")], "no report block"),
+    Case("bench-refresh-unclosed-block", "bench refresh of a report block with no end marker",
+         lambda ws: ["bench", "refresh", _document(ws, "<!-- xted bench report --compact -->\nold table\n")],
+         "not closed"),
+    Case("bench-refresh-json-block", "bench refresh of a report block whose options print JSON",
+         lambda ws: ["bench", "refresh", _document(ws, _block(ws, "--json"))], "--json in a report block"),
+    Case("bench-refresh-bad-block-options", "bench refresh of a report block with an unknown column",
+         lambda ws: ["bench", "refresh", _document(ws, _block(ws, "--columns Tgt+Wings"))], "unknown column"),
+    Case("bench-refresh-missing-file", "bench refresh of a file that does not exist",
+         lambda ws: ["bench", "refresh", str(ws / "notes.md")], "no such file"),
+    Case("bench-refresh-second-document-bad", "bench refresh of two files, the second without a report block "
+         "(the first, though renderable, is not written)",
+         lambda ws: ["bench", "refresh", _document(ws, _block(ws, "--columns Tgt"), "first.md"),
+                     _document(ws, "no block\n", "second.md")], "second.md: no report block"),
     Case("bench-zero-ser-steps", "bench --ser-steps 0 (the Tgt SER column's model)",
          lambda ws: ["bench", "run", "--columns", "Tgt SER", "--ser-steps", "0", "--store", str(ws / "store")],
          "--ser-steps"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import shlex
 import shutil
 import sys
 from pathlib import Path
@@ -463,6 +464,35 @@ def test_compact_report_is_one_line_per_task_with_the_paper_s_mean_and_a_repeate
                         "| 8.0 ± 1.0 [-4.7, 20.7] |")
     assert table[3] == "| halfcheetah medium-replay friction | 15.0 (26.2) | not run (31.8) | 8.0 ± 1.0 [-4.7, 20.7] |"
     assert len(table) == 4
+
+
+def test_refresh_rewrites_each_report_block_as_the_report_prints_it_and_nothing_else(tmp_path, capsys):
+    config = tiny_config(tmp_path, gaps=("thigh",), columns=("Tgt", "Tgt+Oracle"))
+    write_hand_made_results(config, {"Tgt": [10.0, 20.0], "Tgt+Oracle": [7.0, 9.0]})
+    options = ["--envs", "halfcheetah", "--gaps", "thigh", "--columns", "Tgt,Tgt+Oracle", "--seeds", "0,1", "--steps",
+               "10", "--eval-every", "10", "--eval-episodes", "1", "--transitions", "200", "--store", config.store,
+               "--cache", config.cache, "--compact"]
+    assert main(["bench", "report", *options]) == 0
+    printed = capsys.readouterr().out.rstrip("\n")
+    marker = "<!-- xted bench report " + " ".join(shlex.quote(option) for option in options) + " -->"
+    document = tmp_path / "notes.md"
+    document.write_text(f"# Notes\n\n{marker}\nan old table\n<!-- end of the report -->\n\nkept\n")
+    assert main(["bench", "refresh", str(document)]) == 0
+    assert document.read_text() == f"# Notes\n\n{marker}\n{printed}\n<!-- end of the report -->\n\nkept\n"
+    assert "1 report block refreshed" in capsys.readouterr().out
+    before = document.stat().st_mtime_ns
+    assert main(["bench", "refresh", str(document)]) == 0
+    assert "1 report block unchanged" in capsys.readouterr().out and document.stat().st_mtime_ns == before
+
+
+def test_benchmarks_md_s_report_blocks_are_current_with_the_committed_store(tmp_path, monkeypatch):
+    """The tables BENCHMARKS.md shows are what the store holds (the unattended grid refreshes them with each commit)."""
+    root = Path(__file__).resolve().parent.parent
+    copy = tmp_path / "BENCHMARKS.md"
+    copy.write_text((root / "BENCHMARKS.md").read_text())
+    monkeypatch.chdir(root)
+    assert main(["bench", "refresh", str(copy)]) == 0
+    assert copy.read_text() == (root / "BENCHMARKS.md").read_text(), "run `xted bench refresh BENCHMARKS.md`"
 
 
 def test_the_paper_s_cells_sum_to_its_printed_totals():

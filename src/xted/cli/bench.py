@@ -1,10 +1,13 @@
 """``xted bench run`` and ``xted bench report``: the paper's Table 1 protocol as a resumable grid of cells,
-and its report; both name the grid with the same options."""
+and its report; both name the grid with the same options. ``xted bench refresh`` rewrites the report
+blocks of markdown documents from the store."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
+import io
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -232,6 +235,46 @@ def report_grid(
         from xted.viz.plots import save_png, table_figure
 
         save_png(table_figure(rows), png)
+
+
+@app.command("refresh")
+def refresh_documents(
+    documents: List[Path] = typer.Argument(..., help="Markdown files holding report blocks."),
+) -> None:
+    """Rewrite every report block of these markdown files from the stored results: the lines between
+    `<!-- xted bench report OPTIONS -->` and `<!-- end of the report -->` become what `xted bench report
+    OPTIONS` prints (run from where those options' --store is found). Computes nothing; every block is
+    rendered before any file is written, and a file whose blocks did not change is left untouched."""
+    from xted.atomic import atomic_path
+    from xted.pipelines.bench.documents import refreshed
+
+    updates = []
+    for document in documents:
+        if not document.is_file():
+            raise InputError(f"{document}: no such file")
+        try:
+            text = document.read_text()
+        except (OSError, UnicodeDecodeError) as err:
+            raise InputError(f"cannot read {document}: {err}") from None
+        updates.append((document, text, *refreshed(text, str(document), _report_markdown)))
+    for document, text, new_text, count in updates:
+        if new_text != text:
+            with atomic_path(document) as tmp:
+                tmp.write_text(new_text)
+        typer.echo(f"{document}: {count} report block{'s' if count != 1 else ''} "
+                   f"{'refreshed' if new_text != text else 'unchanged'}")
+
+
+def _report_markdown(options: tuple[str, ...]) -> str:
+    """What ``xted bench report OPTIONS`` prints."""
+    report = typer.main.get_command(app).commands["report"]
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed):
+            report.main(list(options), prog_name="xted bench report", standalone_mode=False)
+    except typer.TyperException as err:  # a usage error of the block's options
+        raise InputError(str(err)) from None
+    return printed.getvalue()
 
 
 @app.command("prune", epilog=FIELDS)
