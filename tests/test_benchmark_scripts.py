@@ -30,3 +30,51 @@ def test_state_stats_runs_on_shipped_data():
     result = _run("benchmarks/state_stats.py", "halfcheetah-thigh")
     assert result.returncode == 0, result.stderr[-2000:]
     assert "halfcheetah-thigh" in result.stdout and "%" in result.stdout
+
+
+def _git(repo: Path, *args: str) -> str:
+    return subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, check=True).stdout
+
+
+@pytest.fixture
+def unattended(tmp_path, monkeypatch):
+    """tools/bench_unattended.py as a module, working on a git repository in ``tmp_path`` that holds a
+    committed result and a BENCHMARKS.md with one stale report block."""
+    import importlib.util
+
+    for variable in ("GIT_AUTHOR_NAME", "GIT_AUTHOR_EMAIL", "GIT_COMMITTER_NAME", "GIT_COMMITTER_EMAIL"):
+        monkeypatch.setenv(variable, "t")
+    (tmp_path / "benchmarks" / "results" / "bench").mkdir(parents=True)
+    (tmp_path / "benchmarks" / "results" / "bench" / "old.json").write_text("{}\n")
+    (tmp_path / "BENCHMARKS.md").write_text("# Results\n\n<!-- xted bench report --envs halfcheetah --gaps thigh "
+                                            "--columns Tgt --compact -->\na stale table\n<!-- end of the report -->\n")
+    _git(tmp_path, "init", "-q")
+    _git(tmp_path, "add", ".")
+    _git(tmp_path, "commit", "-qm", "start")
+    spec = importlib.util.spec_from_file_location("bench_unattended", ROOT / "tools" / "bench_unattended.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    monkeypatch.setattr(module, "ROOT", tmp_path)
+    return module
+
+
+def test_the_unattended_runner_commits_new_results_with_the_report_blocks_refreshed(tmp_path, unattended):
+    assert not unattended.commit_results("nothing new", ["BENCHMARKS.md"])
+    (tmp_path / "benchmarks" / "results" / "bench" / "new.json").write_text("{}\n")
+    (tmp_path / "notes.txt").write_text("not the runner's\n")
+    assert unattended.commit_results("run 1 ended", ["BENCHMARKS.md"])
+    committed = _git(tmp_path, "show", "--name-only", "--format=%s", "HEAD").split()
+    assert "benchmarks/results/bench/new.json" in committed and "BENCHMARKS.md" in committed
+    assert "notes.txt" not in committed and "(run 1 ended;" in _git(tmp_path, "log", "-1", "--format=%s")
+    assert "a stale table" not in (tmp_path / "BENCHMARKS.md").read_text()
+    assert "| halfcheetah medium-replay thigh | not run (26.2) |" in (tmp_path / "BENCHMARKS.md").read_text()
+
+
+def test_the_unattended_runner_never_commits_a_document_with_edits_of_its_own(tmp_path, unattended):
+    edited = (tmp_path / "BENCHMARKS.md").read_text() + "\nA paragraph being written.\n"
+    (tmp_path / "BENCHMARKS.md").write_text(edited)
+    (tmp_path / "benchmarks" / "results" / "bench" / "new.json").write_text("{}\n")
+    assert unattended.commit_results("periodic", ["BENCHMARKS.md"])
+    assert _git(tmp_path, "show", "--name-only", "--format=", "HEAD").split() == ["benchmarks/results/bench/new.json"]
+    assert (tmp_path / "BENCHMARKS.md").read_text() == edited
+    assert _git(tmp_path, "status", "--porcelain").split() == ["M", "BENCHMARKS.md"]
