@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from xted.analysis.content import return_per_1000_steps
 from xted.analysis.report import simulator_measures
 from xted.data import Dataset, load
 from xted.envs import parse_domain
@@ -58,7 +59,7 @@ def measures(data: Dataset, source: Dataset, domain, velocity: int, distance: np
     changed = np.any(data.observations != source.observations, axis=1) | np.any(data.actions != source.actions, axis=1)
     return {"changed": float(changed.mean()), "simulator_mae": simulator["mae"], "reward_mae": simulator["reward_mae"],
             "target_distance": float(np.median(distance)), "forward_velocity": float(data.observations[:, velocity].mean()),
-            "return_per_1000_steps": float((data.episode_returns() / data.episode_lengths()).mean() * 1000.0)}
+            "return_per_1000_steps": return_per_1000_steps(data)}
 
 
 def parse_variant(text: str) -> tuple[str, tuple[str, ...]]:
@@ -87,7 +88,7 @@ def main() -> None:
     reference = (reference - mean) / std
     episodes = np.repeat(np.arange(target.num_episodes), target.episode_lengths())
     within_target = float(np.median(nearest_distance(reference, reference, episodes, episodes)))
-    target_return = float((target.episode_returns() / target.episode_lengths()).mean() * 1000.0)
+    target_return = return_per_1000_steps(target)
     print(f"{args.env} {args.target}: median distance of a target pair to the nearest outside its episode {within_target:.3f}, "
           f"forward velocity {target.observations[:, velocity].mean():.2f}, return per 1,000 steps {target_return:,.0f}")
 

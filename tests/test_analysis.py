@@ -116,6 +116,29 @@ def test_content_refuses_different_episodes(make_dataset):
         content_similarity(make_dataset(), make_dataset(), forward_index=7)
 
 
+def _with(data, velocity: float, reward: float):
+    """``data`` with observation column 1 (its forward velocity here) and every reward set to constants."""
+    observations = data.observations.copy()
+    observations[:, 1] = velocity
+    return dataclasses.replace(data, observations=observations, rewards=np.full_like(data.rewards, reward))
+
+
+def test_content_shift_says_whether_the_edit_moved_the_source_toward_the_target(make_dataset):
+    from xted.analysis import content_shift
+
+    source = _with(make_dataset(lengths=(10, 10), obs_dim=4), velocity=6.0, reward=5.0)
+    edited = _with(source, velocity=3.5, reward=5.5)
+    target = _with(make_dataset(lengths=(8, 12, 5), obs_dim=4, seed=1), velocity=3.7, reward=3.0)
+    shift = content_shift(source, edited, target, forward_index=1)
+    assert shift["forward_velocity"] == {"source": pytest.approx(6.0), "edited": pytest.approx(3.5),
+                                         "target": pytest.approx(3.7), "nearer_target": True}
+    assert shift["return_per_1000_steps"] == {"source": pytest.approx(5000.0), "edited": pytest.approx(5500.0),
+                                              "target": pytest.approx(3000.0), "nearer_target": False}
+    assert set(content_shift(source, edited, target)) == {"return_per_1000_steps"}  # no velocity column named
+    with pytest.raises(InputError, match="4-d observations"):
+        content_shift(make_dataset(obs_dim=3), make_dataset(obs_dim=3), target)
+
+
 def test_edit_report_of_an_unchanged_source():
     from xted.analysis import edit_report
     from xted.data import load

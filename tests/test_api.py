@@ -36,7 +36,8 @@ def test_train_edit_measure_through_the_public_names(tmp_path):
     np.testing.assert_array_equal(edited.observations, again.observations)  # same seed, same edit
     assert not np.allclose(edited.observations[1:9], source.observations[1:9])
     report = xted.measure_edit(source, edited, target=target, proxy_steps=20)
-    assert set(report) == {"proxy", "content"} and report["proxy"]["edited"] >= 0
+    assert set(report) == {"proxy", "content", "shift"} and report["proxy"]["edited"] >= 0
+    assert set(report["shift"]) == {"return_per_1000_steps"}  # no env named: no forward-velocity column
     assert set(xted.measure_edit(source, edited)) == {"content"}
     with pytest.raises(InputError, match="EditConfig has no field bogus"):
         prior.edit(source, bogus=1)

@@ -58,3 +58,14 @@ def test_content_json_and_mismatch_exit_2(target_and_source, capsys):
     assert report["matched"]["forward_velocity_correlation"] == pytest.approx(1.0)
     assert main(["analyze", "content", target, "halfcheetah-medium"]) == 2
     assert "must have the source's episodes" in capsys.readouterr().err
+
+
+def test_content_with_a_target_reports_the_shift_against_it(target_and_source, capsys):
+    target, source = target_and_source
+    assert main(["analyze", "content", "--env", "halfcheetah", "--target", source, "--json", target, target]) == 0
+    shift = json.loads(capsys.readouterr().out)["shift"]
+    assert set(shift) == {"forward_velocity", "return_per_1000_steps"}
+    assert shift["forward_velocity"]["source"] == shift["forward_velocity"]["edited"]  # an unchanged edit
+    assert not shift["forward_velocity"]["nearer_target"]
+    assert main(["analyze", "content", "--env", "halfcheetah", "--target", source, target, target]) == 0
+    assert "shift      forward velocity source" in capsys.readouterr().out

@@ -177,6 +177,7 @@ def test_demo_on_shipped_data(tmp_path, capsys):
                    if "reward MAE=" in line}
     assert reward_maes["target"] < 1e-5 < reward_maes["edited"]
     assert "edited / source MAE" in out and "learned proxy" in out and "forward-velocity correlation" in out
+    assert "task content against the target's: forward velocity source 6.20 -> edited" in out
     assert main(["demo", "--out", str(tmp_path / "bad"), "--proxy-steps", "-1"]) == 2
     assert main(["demo", "--out", str(tmp_path / "bad"), "--gap", "mass"]) == 2
     assert not (tmp_path / "bad").exists()

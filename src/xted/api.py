@@ -76,13 +76,15 @@ def measure_edit(source: Dataset, edited: Dataset, target: Dataset | None = None
     transition replayed in that target simulator), or your own step function
     ``f(observations [N, d], actions [N, a]) -> next observations [N, d]`` (one-step errors only: it
     gives no rewards). ``velocity_index``: the observation column of forward velocity, for the
-    content measure's correlation (xted knows it for the envs it simulates)."""
+    content measure's correlation (xted knows it for the envs it simulates). With ``target``, ``shift`` too:
+    the mean forward velocity and return rate of source, edit and target, and whether the edit's is nearer
+    the target's."""
     from xted.analysis import ProxyConfig, edit_report, fit_proxy
     from xted.envs import parse_domain
 
     proxy = None if target is None else fit_proxy(target, ProxyConfig(steps=proxy_steps, seed=seed), progress=False)
     dynamics = parse_domain(env) if isinstance(env, str) else env
-    return edit_report(dynamics, source, edited, proxy, velocity_index)
+    return edit_report(dynamics, source, edited, proxy, velocity_index, target)
 
 
 

@@ -4,7 +4,8 @@ task-content similarity. Names are loaded on first use (``xted.analysis.config``
 from xted.lazy import lazy_exports
 
 _EXPORTS = {
-    "ProxyConfig": "config", "content_similarity": "content", "mean_spectra": "content", "edit_report": "report",
+    "ProxyConfig": "config", "content_similarity": "content", "content_shift": "content", "mean_spectra": "content",
+    "edit_report": "report",
     "simulator_measures": "report", "DynamicsProxy": "proxy", "RewardProxy": "proxy", "fit_proxy": "proxy",
     "fit_reward_proxy": "proxy", "relabel_rewards": "proxy", "transition_validity": "validity",
 }

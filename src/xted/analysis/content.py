@@ -15,6 +15,9 @@ The same numbers for *mismatched* pairs (edited episode ``i`` against source epi
 give the level of "any trajectory of the same kind": an edit that replaced the source with
 generic target-like data would score like the mismatched pairs.
 
+``content_shift`` sets the edit beside the *target* data instead: where the edit took the source's
+mean forward velocity and return rate, against the target's.
+
 ``mean_spectra`` gives the spectra themselves, the paper's frequency analysis (appendix,
 "Frequency-Domain Analysis"): the rFFT magnitude of aligned segments of source and edit, averaged.
 """
@@ -83,6 +86,49 @@ def content_similarity(source: Dataset, edited: Dataset, forward_index: int | No
         shifted = [(i, (i + 1) % episodes) for i in range(episodes)]
         result["mismatched"] = _pair_scores(source, edited, shifted, forward_index, cutoff)
     return result
+
+
+def return_per_1000_steps(data: Dataset) -> float:
+    """The mean over episodes of the return per step, times 1,000 (episodes of any length compare)."""
+    return float((data.episode_returns() / data.episode_lengths()).mean() * 1000.0)
+
+
+def content_shift(source: Dataset, edited: Dataset, target: Dataset,
+                  forward_index: int | None = None) -> dict[str, dict[str, float | bool]]:
+    """Where the edit took the source's task content against the target data's: per measure (the mean
+    forward velocity where ``forward_index`` names its column; the return per 1,000 steps where all three
+    have rewards) its ``source``, ``edited`` and ``target`` values, and ``nearer_target``: whether the
+    edit's value is nearer the target's than the source's. The learner's gain from an edit followed the
+    sign of the velocity shift on every halfcheetah task (BENCHMARKS.md, "The ensemble's disagreement")."""
+    check_same_episodes(source, edited)
+    if target.observation_dim != source.observation_dim:
+        raise InputError(f"the target data has {target.observation_dim}-d observations, the source "
+                         f"{source.observation_dim}-d: the shift is measured in one space")
+    if forward_index is not None and not 0 <= forward_index < source.observation_dim:
+        raise InputError(f"forward_index {forward_index} is outside the {source.observation_dim}-d observations")
+    measures = {}
+    if forward_index is not None:
+        measures["forward_velocity"] = lambda data: float(data.observations[:, forward_index].mean())
+    if source.has_rewards and edited.has_rewards and target.has_rewards:
+        measures["return_per_1000_steps"] = return_per_1000_steps
+    shift = {}
+    for name, measure in measures.items():
+        values = {"source": measure(source), "edited": measure(edited), "target": measure(target)}
+        nearer = abs(values["edited"] - values["target"]) < abs(values["source"] - values["target"])
+        shift[name] = {**values, "nearer_target": bool(nearer)}
+    return shift
+
+
+def shift_text(shift: dict) -> str:
+    """The measures of :func:`content_shift` in one line."""
+    shown = {"forward_velocity": ("forward velocity", "{:.2f}"), "return_per_1000_steps": ("return per 1,000 steps", "{:,.0f}")}
+    lines = []
+    for name, row in shift.items():
+        label, number = shown[name]
+        source, edited, target = (number.format(row[key]) for key in ("source", "edited", "target"))
+        lines.append(f"{label} source {source} -> edited {edited} (target {target}: "
+                     f"{'nearer' if row['nearer_target'] else 'not nearer'})")
+    return "; ".join(lines) or "no measure (no forward velocity, no rewards)"
 
 
 def check_same_episodes(source: Dataset, edited: Dataset) -> None:

@@ -4,7 +4,7 @@ paper's learned dynamics proxy where one is given, and for the task content it k
 
 from __future__ import annotations
 
-from xted.analysis.content import content_similarity
+from xted.analysis.content import content_shift, content_similarity
 from xted.analysis.proxy import DynamicsProxy
 from xted.data import Dataset
 from xted.envs import Domain
@@ -29,10 +29,12 @@ def simulator_measures(domain: Domain | StepFunction, data: Dataset) -> dict:
 
 
 def edit_report(domain: Domain | StepFunction | None, source: Dataset, edited: Dataset,
-                proxy: DynamicsProxy | None = None, forward_index: int | None = None) -> dict:
+                proxy: DynamicsProxy | None = None, forward_index: int | None = None,
+                target: Dataset | None = None) -> dict:
     """``{"simulator": {"source", "edited"}`` (with a domain, or a user's step function), ``"proxy":
-    {"source", "edited"}`` (with a proxy), ``"content"}`` (with the forward-velocity correlation where
-    ``forward_index`` or the domain names that observation column)."""
+    {"source", "edited"}`` (with a proxy), ``"content"`` (with the forward-velocity correlation where
+    ``forward_index`` or the domain names that observation column), ``"shift"}`` (with the target data:
+    :func:`~xted.analysis.content.content_shift`)."""
     report: dict = {}
     if domain is not None:
         report["simulator"] = {name: simulator_measures(domain, data) for name, data in (("source", source),
@@ -42,4 +44,6 @@ def edit_report(domain: Domain | StepFunction | None, source: Dataset, edited: D
     if forward_index is None and isinstance(domain, Domain):
         forward_index = forward_velocity_index(domain)
     report["content"] = content_similarity(source, edited, forward_index)
+    if target is not None:
+        report["shift"] = content_shift(source, edited, target, forward_index)
     return report

@@ -168,18 +168,27 @@ def content(
                                                  "env: adds the forward-velocity correlation."),
     cutoff: float = typer.Option(0.2, "--cutoff", min=0.01, max=1.0,
                                  help="Low-frequency band, as a fraction of the Nyquist frequency."),
+    target: Optional[str] = typer.Option(None, "--target", help="The target data: adds where the edit took the "
+                                         "source's mean forward velocity and return rate against the target's."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """How much task content an edit kept: low-frequency spectrum difference and forward-velocity
-    correlation per episode, against mismatched episode pairs as the chance level."""
-    from xted.analysis import content_similarity
+    correlation per episode, against mismatched episode pairs as the chance level; with --target, the
+    shift of its mean forward velocity and return rate against the target data's."""
+    from xted.analysis import content_shift, content_similarity
+    from xted.analysis.content import shift_text
     from xted.data import load
     from xted.envs.make import forward_velocity_index
 
     forward = forward_velocity_index(parse_domain(env)) if env and velocity_index is None else velocity_index
-    scores = content_similarity(load(source), load(edited), forward, cutoff)
+    source_data, edited_data = load(source), load(edited)
+    scores = content_similarity(source_data, edited_data, forward, cutoff)
+    shift = None if target is None else content_shift(source_data, edited_data, load(target), forward)
     if as_json:
-        print(json.dumps({"source": source, "edited": edited, "cutoff": cutoff, **scores}))
+        print(json.dumps({"source": source, "edited": edited, "cutoff": cutoff, **scores,
+                          **({"shift": shift} if shift is not None else {})}))
         return
     for pairing, values in scores.items():
         print(f"{pairing:10s} " + "  ".join(f"{name} {value:.3f}" for name, value in values.items()))
+    if shift is not None:
+        print(f"shift      {shift_text(shift)}")

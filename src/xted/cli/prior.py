@@ -159,6 +159,7 @@ def demo(
     rows of the task (`xted bench`): what IQL scores on target data alone, with the source, with the
     edited source, and with the source relabelled by the target simulator."""
     from xted.analysis import edit_report, fit_proxy, simulator_measures
+    from xted.analysis.content import shift_text
     from xted.data import formats, load, shipped, split_heldout
     from xted.diffusion.config import PriorConfig
     from xted.diffusion.editor import edit_dataset
@@ -185,7 +186,7 @@ def demo(
     training_episodes, heldout_episodes = split_heldout(target, DEMO_HELDOUT_EPISODES)
     if proxy_steps:
         proxy = fit_proxy(training_episodes, ProxyConfig(steps=proxy_steps, seed=seed))
-    measured = edit_report(domain, source, edited, proxy)
+    measured = edit_report(domain, source, edited, proxy, target=target)
     rows = [("target (medium-replay)", simulator_measures(domain, target)),
             (f"source ({factor:g}x {gap})", measured["simulator"]["source"]),
             ("edited source", measured["simulator"]["edited"])]
@@ -210,6 +211,7 @@ def demo(
     typer.echo("task content, forward-velocity correlation with the source: "
                f"edited {content['matched']['forward_velocity_correlation']:.2f}, "
                f"a different source episode {content['mismatched']['forward_velocity_correlation']:.2f}")
+    typer.echo(f"task content against the target's: {shift_text(measured['shift'])}")
     _echo_bench_rows("halfcheetah", "medium-replay", gap, bench_store)
 
 
