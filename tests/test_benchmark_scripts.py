@@ -3,6 +3,7 @@ name breaks a script silently otherwise: they run by hand, weeks apart); the che
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -78,3 +79,26 @@ def test_the_unattended_runner_never_commits_a_document_with_edits_of_its_own(tm
     assert _git(tmp_path, "show", "--name-only", "--format=", "HEAD").split() == ["benchmarks/results/bench/new.json"]
     assert (tmp_path / "BENCHMARKS.md").read_text() == edited
     assert _git(tmp_path, "status", "--porcelain").split() == ["M", "BENCHMARKS.md"]
+
+
+def test_edit_rules_scores_each_rule_s_picks(tmp_path):
+    measured = {"simulator_mae": 1.0, "target_distance": 3.0, "forward_velocity": 9.0, "return_per_1000_steps": 9000.0}
+    rows = [{"env": "halfcheetah", "target": "medium-replay", "gap": "thigh", "variant": "Tgt+Src", "score": 20.0,
+             **measured},
+            # the edit is worse in the simulator, slower (nearer the target's speed) and scores higher
+            {"env": "halfcheetah", "target": "medium-replay", "gap": "thigh", "variant": "Tgt+Edited", "score": 30.0,
+             **measured, "simulator_mae": 2.0, "forward_velocity": 4.0},
+            {"env": "halfcheetah", "target": "medium-replay", "gap": "gravity", "variant": "Tgt+Src", "score": None,
+             **measured}]
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(row) + "\n" for row in rows))
+    result = _run("benchmarks/edit_rules.py", str(path))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "| halfcheetah medium-replay thigh | 20.0 | 30.0 | no | yes | no | no |" in result.stdout
+    assert "over 1 tasks" in result.stdout
+    assert "| simulator | 20.0 | +0.0% | 0 of 1 |" in result.stdout
+    assert "| speed | 30.0 | +50.0% | 1 of 1 |" in result.stdout
+    empty = tmp_path / "empty.jsonl"
+    empty.write_text(json.dumps(rows[0]) + "\n")
+    refused = _run("benchmarks/edit_rules.py", str(empty))
+    assert refused.returncode == 2 and "no task with both" in refused.stderr
