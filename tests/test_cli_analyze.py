@@ -69,3 +69,18 @@ def test_content_with_a_target_reports_the_shift_against_it(target_and_source, c
     assert not shift["forward_velocity"]["nearer_target"]
     assert main(["analyze", "content", "--env", "halfcheetah", "--target", source, target, target]) == 0
     assert "shift      forward velocity source" in capsys.readouterr().out
+
+
+def test_edit_plan_weighs_the_ensembles_disagreement_where_asked(target_and_source, capsys):
+    """The shipped prior holds the guard's ensemble: a heavy disagreement weight keeps the source
+    (it is far from the target data there), weight 0 reports no disagreement and edits."""
+    source = target_and_source[1]
+    common = ["analyze", "edit-plan", "--prior", "halfcheetah-medium-replay-cpu", "--kappas", "0.5", "--transitions", "100",
+              "--json", source]
+    assert main(common) == 0
+    plain = json.loads(capsys.readouterr().out)["sources"][source]["kappas"][0]
+    assert plain["disagreement"] is None and plain["edited_share"] > 0
+    assert main([*common, "--guard-disagreement", "1000"]) == 0
+    weighed = json.loads(capsys.readouterr().out)["sources"][source]
+    assert weighed["kappas"][0]["disagreement"] > 0 and weighed["kappas"][0]["edited_share"] == 0
+    assert weighed["kappa"] is None and "keep the source" in weighed["verdict"]

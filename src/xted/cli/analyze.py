@@ -8,6 +8,7 @@ from typing import List, Optional
 import typer
 
 from xted.analysis.config import ProxyConfig
+from xted.diffusion.config import EditConfig
 from xted.envs import parse_domain
 from xted.envs.domains import KNOWN_ENVS
 
@@ -91,6 +92,10 @@ def edit_plan(
     kappas: str = typer.Option("0.1,0.3,0.5,0.7", "--kappas", help="Candidate kappas, comma-separated."),
     transitions: int = typer.Option(2000, "--transitions", min=1,
                                     help="Source steps sampled (whole random episodes) and edited at each kappa."),
+    guard_disagreement: float = typer.Option(
+        EditConfig.guard_disagreement, "--guard-disagreement",
+        help="As xted edit's: a window's gain must also exceed W x the target model ensemble's disagreement on it "
+        "(the prior's ensemble, or one fitted to --target)."),
     seed: int = typer.Option(0, "--seed", min=0),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
@@ -99,9 +104,8 @@ def edit_plan(
     the guarded edit is expected to help or keep the source as it is."""
     from xted.diffusion.prior import load_prior
     from xted.data import check_dimensions, load
-    from xted.diffusion.config import EditConfig
     from xted.diffusion.diagnosis import diagnose_edit
-    from xted.diffusion.guard import fit_target_model
+    from xted.diffusion.guard import fit_for_edit
     from xted.errors import InputError
 
     try:
@@ -112,8 +116,8 @@ def edit_plan(
     data = {name: load(name) for name in sources}
     for name, source in data.items():
         check_dimensions(source, (model.config.state_dim, model.config.action_dim), name, "the prior's training data")
-    configs = [EditConfig(kappa=k) for k in candidates]  # each kappa checked before any edit runs
-    target_model = None if target is None else fit_target_model(load(target), seed=seed)
+    configs = [EditConfig(kappa=k, guard_disagreement=guard_disagreement) for k in candidates]  # checked before any edit
+    target_model = None if target is None else fit_for_edit(load(target), guard_disagreement, seed=seed)
     results = {name: diagnose_edit(model, source, configs[0], candidates, transitions, target_model, seed=seed)
                for name, source in data.items()}
     if as_json:
@@ -123,7 +127,8 @@ def edit_plan(
         first = result["kappas"][0]
         print(f"{name} ({result['transitions']} steps sampled): {first['outside_support_share']:.0%} of windows beyond "
               f"the prior's support; one-step mismatch {first['source_error']:.3f} ({first['source_score']:.3f} inside "
-              f"it) against the target model's resolution {first['resolution']:.3f}")
+              f"it) against the target model's resolution {first['resolution']:.3f}"
+              + ("" if first["disagreement"] is None else f"; its ensemble's disagreement {first['disagreement']:.3f}"))
         for row in result["kappas"]:
             print(f"  kappa {row['kappa']:.2f}: score {row['score']:.3f}, {row['edited_share']:.0%} of windows edited")
         chosen = "none (keep the source)" if result["kappa"] is None else f"{result['kappa']:g}"

@@ -45,7 +45,7 @@ def diagnose_edit(prior: Prior, source: Dataset, config: EditConfig = EditConfig
                      "edited_share": guard["edited"] / guard["windows"],
                      "outside_support_share": (guard["source_outside_support"] + guard["dropped_outside_support"])
                      / guard["windows"], "verdict": guard["verdict"], "source_error": guard["source_error"],
-                     "resolution": guard["resolution"]})
+                     "resolution": guard["resolution"], "disagreement": guard["source_disagreement"]})
     source_score, best = rows[0]["source_score"], min(row["score"] for row in rows)
     beyond = rows[0]["outside_support_share"]
     if best >= (1 - TOLERANCE) * source_score:

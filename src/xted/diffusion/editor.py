@@ -345,12 +345,12 @@ def _checked_edit(prior: Prior, source: Dataset, config: EditConfig, noise_steps
                                "edit it with a reward-free prior (trained on reward-free target data)")
     if config.guard and noise_steps > 0 and guard_model is None:
         raise InputError(f"the guarded edit needs a model of the target's dynamics, and the prior {prior.path} holds "
-                         "none (trained before xted fitted one): give the target data (xted edit --target, "
+                         "none (trained before xted fitted one): give the target data (--target, "
                          "Prior.edit(target=...)), or edit without the guard (--no-guard, guard=False: the paper's "
                          "plain edit)")
     if config.guard and noise_steps > 0 and config.guard_disagreement > 0 and not guard_model.members:
         raise InputError(f"guard_disagreement {config.guard_disagreement} needs the target model's ensemble, and the "
-                         f"prior {prior.path} holds none: give the target data (xted edit --target, "
+                         f"prior {prior.path} holds none: give the target data (--target, "
                          "Prior.edit(target=...)) to fit it, or leave guard_disagreement at 0")
     return guard_model
 

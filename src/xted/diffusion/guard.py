@@ -75,7 +75,7 @@ class TargetModel:
         and its members') from their mean."""
         if not self.members:
             raise InputError("the guard's disagreement needs the target model's ensemble, which this prior does "
-                             f"not hold ({ENSEMBLE_FILE}): give the target data (xted edit --target, "
+                             f"not hold ({ENSEMBLE_FILE}): give the target data (--target, "
                              "Prior.edit(target=...)) to fit it, or set guard_disagreement=0")
         inputs = np.concatenate([observations, actions], axis=1)
         deltas = np.stack([member(inputs) for member in (self.dynamics, *self.members)])
